@@ -1,0 +1,1 @@
+"""TableTeach: teach robots ordered tasks from demonstrations and assessments."""

@@ -1,0 +1,1 @@
+"""Pure learner: LTL, clause space, priors, exact belief, PUnS planning, queries, sessions (numpy only)."""

@@ -1,0 +1,1 @@
+"""Offline simulation experiments driving the learning core."""

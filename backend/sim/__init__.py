@@ -1,0 +1,1 @@
+"""Simulation adapter: the only code that imports mujoco or viser."""

@@ -1,0 +1,1 @@
+"""Web adapter: the only code that imports fastapi."""
