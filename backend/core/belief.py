@@ -1,0 +1,136 @@
+"""Exact posterior over task formulas (Bayesian specification inference), in log space.
+
+Likelihood of one labelled execution under a hypothesis with N clauses (the authors' model):
+acceptable: 2^N if the execution satisfies it, else epsilon; unacceptable: 2^N / (2^N - 1) if
+the execution violates it, else epsilon (the empty formula cannot be violated). Executions are
+independent, so an update adds one log-likelihood vector: incremental and exact.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+from typing import Sequence
+
+import numpy as np
+
+from .hypotheses import LN2, HypothesisSpace
+from .ltl_semantics import Trace
+
+
+@dataclass(frozen=True)
+class LabelledExecution:
+    """A trace with the teacher's verdict: True means acceptable."""
+
+    trace: tuple[frozenset[str], ...]
+    acceptable: bool
+
+    @staticmethod
+    def of(trace: Sequence[Sequence[str]], acceptable: bool) -> "LabelledExecution":
+        """Build from any sequence of states; checks the label is a real boolean."""
+        if not isinstance(acceptable, (bool, np.bool_)):
+            raise ValueError(f"label must be true or false, got {acceptable!r}")
+        if len(trace) == 0:
+            raise ValueError("a trace must have at least one state (the initial state)")
+        return LabelledExecution(tuple(frozenset(s) for s in trace), bool(acceptable))
+
+
+def log_likelihood(space: HypothesisSpace, sat_mask: int, acceptable: bool) -> np.ndarray:
+    """Log-likelihood of one labelled execution (given its satisfied-clause mask) for every hypothesis."""
+    satisfied = space.satisfied_by(sat_mask)
+    n = space.nconj.astype(np.float64)
+    if acceptable:
+        return np.where(satisfied, n * LN2, space.log_epsilon)
+    with np.errstate(divide="ignore"):
+        violated_ll = -np.log1p(-np.exp2(-n))  # log(2^N / (2^N - 1)); inf at N = 0 is masked below
+    return np.where(~satisfied & (space.nconj > 0), violated_ll, space.log_epsilon)
+
+
+@dataclass(frozen=True, eq=False)
+class Belief:
+    """A distribution over a hypothesis space, stored as unnormalised log weights."""
+
+    space: HypothesisSpace
+    log_weights: np.ndarray
+    n_observations: int = 0
+
+    @staticmethod
+    def prior(space: HypothesisSpace) -> "Belief":
+        """The prior belief of a hypothesis space."""
+        return Belief(space, space.log_prior.copy())
+
+    def observe_mask(self, sat_mask: int, acceptable: bool) -> "Belief":
+        """The posterior after one execution with the given satisfied-clause mask and label."""
+        ll = log_likelihood(self.space, sat_mask, acceptable)
+        return Belief(self.space, self.log_weights + ll, self.n_observations + 1)
+
+    def observe(self, trace: Trace, acceptable: bool) -> "Belief":
+        """The posterior after one labelled execution."""
+        self.space.domain.check_trace(list(trace))
+        return self.observe_mask(self.space.domain.clause_space.sat_mask(trace), acceptable)
+
+    def observe_all(self, executions: Sequence[LabelledExecution]) -> "Belief":
+        """The posterior after several labelled executions, applied in order."""
+        belief = self
+        for execution in executions:
+            belief = belief.observe(execution.trace, execution.acceptable)
+        return belief
+
+    # ------------------------------------------------------------ summaries
+
+    @cached_property
+    def probs(self) -> np.ndarray:
+        """Normalised posterior probabilities."""
+        shifted = np.exp(self.log_weights - self.log_weights.max())
+        return shifted / shifted.sum()
+
+    @cached_property
+    def entropy(self) -> float:
+        """Shannon entropy in nats over canonical clause sets."""
+        p = self.probs
+        nz = p[p > 0]
+        return float(-(nz * np.log(nz)).sum())
+
+    @cached_property
+    def map_index(self) -> int:
+        """Index of the most probable hypothesis (lowest index among exact ties)."""
+        return int(np.argmax(self.log_weights))
+
+    @property
+    def map_mask(self) -> int:
+        """Clause-set mask of the most probable hypothesis."""
+        return int(self.space.masks[self.map_index])
+
+    def top(self, k: int) -> list[tuple[int, float]]:
+        """The k most probable hypotheses as (mask, probability), most probable first."""
+        if k <= 0:
+            return []
+        k = min(k, self.space.size)
+        idx = np.argpartition(-self.log_weights, k - 1)[:k]
+        idx = idx[np.lexsort((idx, -self.log_weights[idx]))]
+        return [(int(self.space.masks[i]), float(self.probs[i])) for i in idx]
+
+    def p_acceptable(self, trace: Trace) -> float:
+        """Posterior probability that an execution with this trace is acceptable."""
+        return self.p_acceptable_mask(self.space.domain.clause_space.sat_mask(trace))
+
+    def p_acceptable_mask(self, sat_mask: int) -> float:
+        """Posterior probability that an execution with this satisfied-clause mask is acceptable."""
+        return float(self.probs[self.space.satisfied_by(sat_mask)].sum())
+
+    def similarity(self, truth_mask: int) -> float:
+        """Expected similarity E_P[L(phi, truth)] (the authors' IoU over expanded clause sets)."""
+        from .metrics import similarities
+
+        return float(self.probs @ similarities(self.space, truth_mask))
+
+    def map_similarity(self, truth_mask: int) -> float:
+        """Similarity of the MAP formula to the truth."""
+        from .metrics import similarity
+
+        return similarity(self.space.domain.clause_space, self.map_mask, truth_mask)
+
+
+def total_variation(p: np.ndarray, q: np.ndarray) -> float:
+    """Total-variation distance between two distributions on the same support."""
+    return 0.5 * float(np.abs(np.asarray(p) - np.asarray(q)).sum())

@@ -1,0 +1,107 @@
+"""Task domains (environment MDPs): the dinner table and the synthetic waypoint/threat domain.
+
+An environment state is the history of successful moves. Dinner table: placing an object is
+permanent and each object is placed at most once; the state's labels are the placed objects.
+Synthetic: the robot moves to one of the waypoints or threats, succeeding with probability 0.8
+(else it stays); the state's label is its current location. Both have a stop action (``None``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property, lru_cache
+
+import numpy as np
+
+from .clauses import ClauseSpace
+
+STOP = None
+DINNER_OBJECTS = ("dinner_plate", "small_plate", "bowl", "knife", "fork")
+
+History = tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class Domain:
+    """A task's propositions, which clauses they admit, and its action dynamics."""
+
+    name: str
+    propositions: tuple[str, ...]
+    orderable: tuple[str, ...]
+    forbiddable: tuple[str, ...]
+    persistent: bool
+    success_prob: float
+    verb: str
+
+    @cached_property
+    def clause_space(self) -> ClauseSpace:
+        """The template clause universe of this domain."""
+        return ClauseSpace(self.orderable, self.forbiddable, verb=self.verb)
+
+    def labels(self, history: History) -> frozenset[str]:
+        """Propositions true in the state reached by a history of successful moves."""
+        if self.persistent:
+            return frozenset(history)
+        return frozenset(history[-1:])
+
+    def actions(self, history: History) -> list[str | None]:
+        """Available actions: a proposition to make true, or STOP (None)."""
+        if self.persistent:
+            return [p for p in self.propositions if p not in history] + [STOP]
+        return list(self.propositions) + [STOP]
+
+    def step(self, history: History, action: str, rng: np.random.Generator | None = None) -> History:
+        """Apply a move; with success probability below 1 an rng decides whether it happens."""
+        if action not in self.propositions:
+            raise ValueError(f"unknown action {action!r}; expected one of {', '.join(self.propositions)}")
+        if self.persistent and action in history:
+            raise ValueError(f"{action!r} is already placed; a placed object cannot be placed again")
+        if self.success_prob < 1.0:
+            if rng is None:
+                raise ValueError(f"domain {self.name!r} is stochastic: step() needs an rng")
+            if rng.random() >= self.success_prob:
+                return history
+        return history + (action,)
+
+    def trace_of(self, events: tuple[str, ...] | list[str]) -> list[frozenset[str]]:
+        """The trace of a sequence of successful moves, starting with the initial state."""
+        trace = [self.labels(())]
+        for i in range(len(events)):
+            trace.append(self.labels(tuple(events[: i + 1])))
+        return trace
+
+    def check_trace(self, trace: list[frozenset[str]] | list[list[str]]) -> None:
+        """Raise ValueError naming the problem if a trace is empty or names unknown propositions."""
+        if len(trace) == 0:
+            raise ValueError("a trace must have at least one state (the initial state)")
+        known = set(self.propositions)
+        for t, state in enumerate(trace):
+            unknown = set(state) - known
+            if unknown:
+                raise ValueError(
+                    f"state {t} names unknown proposition(s) {', '.join(sorted(unknown))}; "
+                    f"expected some of {', '.join(self.propositions)}"
+                )
+
+
+def dinner_domain() -> Domain:
+    """The dinner table: five objects, each may be required, ordered or forbidden."""
+    return Domain("dinner", DINNER_OBJECTS, DINNER_OBJECTS, DINNER_OBJECTS, True, 1.0, "place")
+
+
+def synthetic_domain(n_waypoints: int = 5, n_threats: int = 5, success_prob: float = 0.8) -> Domain:
+    """The paper's synthetic domain: waypoints to visit in some order and threats to avoid."""
+    waypoints = tuple(f"w{i}" for i in range(n_waypoints))
+    threats = tuple(f"t{i}" for i in range(n_threats))
+    return Domain("synthetic", waypoints + threats, waypoints, threats, False, success_prob, "visit")
+
+
+DOMAINS = {"dinner": dinner_domain, "synthetic": synthetic_domain}
+
+
+@lru_cache(maxsize=None)
+def get_domain(name: str) -> Domain:
+    """A domain by name ('dinner' or 'synthetic')."""
+    if name not in DOMAINS:
+        raise ValueError(f"unknown task {name!r}; expected one of {', '.join(DOMAINS)}")
+    return DOMAINS[name]()

@@ -1,0 +1,95 @@
+"""Robot executions: min-regret plans, active (uncertainty-sampling) queries and random queries.
+
+Active query: among every reachable end of an execution, the one whose probability of being
+acceptable is closest to 1/2 (min-regret reward closest to 0); ties go to the shortest, then to
+the seeded rng. The robot then plans a path to it. Random query: a uniformly random action
+(stop included) each step until the execution ends.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .belief import Belief
+from .domain import STOP, Domain
+from .executions import execution_graph
+from .puns import TIE_TOLERANCE, solve
+
+QUERY_STRATEGIES = ("active", "random")
+
+
+@dataclass(frozen=True)
+class Execution:
+    """A robot execution: the propositions it made true in order and the resulting trace."""
+
+    events: tuple[str, ...]
+    trace: tuple[frozenset[str], ...]
+
+    def to_json(self) -> dict:
+        """JSON-ready form: events and the trace as sorted lists."""
+        return {"events": list(self.events), "trace": [sorted(s) for s in self.trace]}
+
+
+def rollout(domain: Domain, events: tuple[str, ...], rng: np.random.Generator) -> Execution:
+    """Carry out a sequence of intended moves, retrying failed moves until each succeeds."""
+    history: tuple[str, ...] = ()
+    trace = [domain.labels(history)]
+    for event in events:
+        while True:
+            nxt = domain.step(history, event, rng)
+            trace.append(domain.labels(nxt))
+            if nxt != history:
+                history = nxt
+                break
+    return Execution(tuple(events), tuple(trace))
+
+
+def plan_execution(
+    belief: Belief, criterion: str = "min-regret", rng: np.random.Generator | None = None, risk: float = 0.1
+) -> tuple[Execution, float]:
+    """The robot's best execution under a PUnS criterion, with its P(acceptable) under the belief."""
+    rng = rng or np.random.default_rng(0)
+    policy = solve(belief, criterion, rng=rng, risk=risk)
+    events = policy.events_from(0)
+    execution = rollout(belief.space.domain, events, rng)
+    return execution, belief.p_acceptable(execution.trace)
+
+
+def active_query(belief: Belief, rng: np.random.Generator | None = None) -> tuple[Execution, float]:
+    """The execution the robot is least sure about, with its P(acceptable)."""
+    rng = rng or np.random.default_rng(0)
+    graph = execution_graph(belief.space.domain)
+    p_accept = belief.space.weighted_acceptance(belief.probs, graph.sat)
+    score = np.abs(2.0 * p_accept - 1.0)
+    tied = score <= score.min() + TIE_TOLERANCE
+    tied &= graph.depth == graph.depth[tied].min()
+    candidates = np.flatnonzero(tied)
+    node = int(candidates[rng.integers(candidates.size)]) if candidates.size > 1 else int(candidates[0])
+    execution = rollout(belief.space.domain, graph.events[node], rng)
+    return execution, float(p_accept[node])
+
+
+def random_query(belief: Belief, rng: np.random.Generator) -> tuple[Execution, float]:
+    """A uniformly random execution (stop included at every step), with its P(acceptable)."""
+    domain = belief.space.domain
+    history: tuple[str, ...] = ()
+    trace = [domain.labels(history)]
+    while True:
+        actions = domain.actions(history)
+        action = actions[int(rng.integers(len(actions)))]
+        if action is STOP:
+            break
+        history = domain.step(history, action, rng)
+        trace.append(domain.labels(history))
+    return Execution(tuple(history), tuple(trace)), belief.p_acceptable(trace)
+
+
+def query(belief: Belief, strategy: str, rng: np.random.Generator) -> tuple[Execution, float]:
+    """A query by strategy name ('active' or 'random')."""
+    if strategy == "active":
+        return active_query(belief, rng)
+    if strategy == "random":
+        return random_query(belief, rng)
+    raise ValueError(f"unknown query strategy {strategy!r}; expected one of {', '.join(QUERY_STRATEGIES)}")
