@@ -14,7 +14,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .hypotheses import LN2, HypothesisSpace
+from .hypotheses import HypothesisSpace
 from .ltl_semantics import Trace
 
 
@@ -38,12 +38,9 @@ class LabelledExecution:
 def log_likelihood(space: HypothesisSpace, sat_mask: int, acceptable: bool) -> np.ndarray:
     """Log-likelihood of one labelled execution (given its satisfied-clause mask) for every hypothesis."""
     satisfied = space.satisfied_by(sat_mask)
-    n = space.nconj.astype(np.float64)
     if acceptable:
-        return np.where(satisfied, n * LN2, space.log_epsilon)
-    with np.errstate(divide="ignore"):
-        violated_ll = -np.log1p(-np.exp2(-n))  # log(2^N / (2^N - 1)); inf at N = 0 is masked below
-    return np.where(~satisfied & (space.nconj > 0), violated_ll, space.log_epsilon)
+        return np.where(satisfied, space.ll_satisfied, space.log_epsilon)
+    return np.where(satisfied, space.log_epsilon, space.ll_violated)
 
 
 @dataclass(frozen=True, eq=False)

@@ -115,6 +115,8 @@ def authors_formula_mask(node: Any, space: ClauseSpace, names: Sequence[str]) ->
     if not isinstance(node, list) or not node:
         raise InputError(f"not a formula node: {node!r}")
     op = node[0]
+    if op == "true" and len(node) == 1:
+        return 0  # the empty conjunction
     if op == "and":
         mask = 0
         for part in node[1:]:

@@ -35,6 +35,8 @@ class HypothesisSpace:
     u_patterns: np.ndarray = field(init=False)
     u_index: np.ndarray = field(init=False)
     unary_code: np.ndarray = field(init=False)
+    ll_satisfied: np.ndarray = field(init=False)
+    ll_violated: np.ndarray = field(init=False)
     _ok_cache: dict[int, np.ndarray] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -45,6 +47,12 @@ class HypothesisSpace:
         self.unary_code = (self.masks & unary).astype(np.int64)
         self.u_patterns, u_index = np.unique(self.masks & ~unary, return_inverse=True)
         self.u_index = u_index.astype(np.int64).ravel()
+        # Likelihood terms depend only on Nconj (0..63): tabulate once, gather per hypothesis.
+        n = np.arange(64, dtype=np.float64)
+        with np.errstate(divide="ignore"):
+            violated = np.where(n > 0, -np.log1p(-np.exp2(-n)), self.log_epsilon)
+        self.ll_satisfied = (n * LN2)[self.nconj]
+        self.ll_violated = violated[self.nconj]
 
     @property
     def size(self) -> int:

@@ -1,0 +1,75 @@
+"""The command-line contract that other tools rely on."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from ..conftest import AUTHORS_DATA, REPO
+
+DEMOS = REPO / "examples" / "dinner_demos.json"
+
+
+def tableteach(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "tableteach.cli", *args], capture_output=True, text=True,
+                          timeout=120)
+
+
+def test_infer_prints_the_documented_json():
+    out = tableteach("infer", "--task", "dinner", "--prior", "chains-2020", "--data", str(DEMOS), "--top", "3")
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert set(result) >= {"support", "entropy", "map", "n_hypotheses", "seconds"}
+    assert result["n_hypotheses"] == 513_024
+    probs = [s["p"] for s in result["support"]]
+    assert len(probs) == 3 and probs == sorted(probs, reverse=True)
+    assert result["map"] == result["support"][0]["formula"]
+    for clause in result["support"][0]["clauses"]:
+        assert clause.startswith(("G(!", "F(", "(!"))
+
+
+@pytest.mark.parametrize("command, extra", [("query", ["--strategy", "active", "--seed", "1"]),
+                                             ("query", ["--strategy", "random", "--seed", "1"]),
+                                             ("plan", ["--criterion", "most-likely"])])
+def test_query_and_plan_print_an_execution(command, extra):
+    out = tableteach(command, "--task", "dinner", "--data", str(DEMOS), *extra)
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert set(result) == {"execution", "p_acceptable", "seconds"}
+    assert len(set(result["execution"])) == len(result["execution"])
+    assert 0.0 <= result["p_acceptable"] <= 1.0
+
+
+def test_reads_the_authors_format():
+    out = tableteach("infer", "--task", "dinner", "--prior", "chains-2020", "--authors-format",
+                     "--data", str(AUTHORS_DATA / "batch_2020_server"), "--top", "3")
+    assert out.returncode == 0, out.stderr
+    probs = [s["p"] for s in json.loads(out.stdout)["support"]]
+    assert probs[0] == pytest.approx(probs[2], abs=1e-12)
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        ('{"executions": [', "not valid JSON"),
+        ('{"executions": [{"trace": [[], ["spoon"]], "label": true}]}', "unknown proposition(s) spoon"),
+        ('{"executions": [{"trace": [], "label": true}]}', "non-empty list of states"),
+        ('{"executions": [{"trace": [[]], "label": "yes"}]}', "expected true or false"),
+        ('{"runs": []}', "list 'executions'"),
+    ],
+)
+def test_bad_input_is_one_line_and_exit_2(tmp_path, content, message):
+    data = tmp_path / "data.json"
+    data.write_text(content)
+    out = tableteach("infer", "--task", "dinner", "--data", str(data))
+    assert out.returncode == 2
+    assert out.stdout == ""
+    lines = out.stderr.strip().splitlines()
+    assert len(lines) == 1 and message in lines[0] and "Traceback" not in out.stderr
+
+
+def test_unknown_task_is_one_line_and_exit_2():
+    out = tableteach("infer", "--task", "kitchen", "--data", str(DEMOS))
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert "kitchen" in out.stderr
