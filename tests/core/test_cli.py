@@ -73,3 +73,13 @@ def test_unknown_task_is_one_line_and_exit_2():
     out = tableteach("infer", "--task", "kitchen", "--data", str(DEMOS))
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
     assert "kitchen" in out.stderr
+
+
+def test_synthetic_domain_end_to_end(tmp_path):
+    data = tmp_path / "synthetic.json"
+    data.write_text('{"executions": [{"trace": [[], ["w1"], ["w1"], ["w0"], ["w3"]], "label": true}]}')
+    out = tableteach("plan", "--task", "synthetic", "--data", str(data), "--seed", "2")
+    assert out.returncode == 0, out.stderr
+    plan = json.loads(out.stdout)
+    assert plan["p_acceptable"] == pytest.approx(1.0)
+    assert not any(p.startswith("t") for p in plan["execution"])  # threats are never needed
