@@ -212,6 +212,7 @@ def beliefs_by_step(state: SessionState) -> list[Belief]:
     return out
 
 
+@lru_cache(maxsize=256)  # states are immutable values: the server asks for the same step several times
 def next_step(state: SessionState) -> Step:
     """What happens next; robot turns come with the robot's execution (deterministic per seed)."""
     c = state.config
