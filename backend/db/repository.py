@@ -1,0 +1,229 @@
+"""Repository functions: keyword-only, they flush but never commit (services commit once per action)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from datetime import datetime
+from typing import Any
+
+from sqlalchemy import func, select
+from sqlalchemy.exc import IntegrityError, OperationalError
+from sqlalchemy.orm import Session
+from sqlalchemy.orm.exc import StaleDataError
+
+from .tables import EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
+
+
+class WriteConflict(Exception):
+    """A concurrent writer changed the same rows first, or a unique value already exists."""
+
+
+def commit(session: Session) -> None:
+    """Commit; a lost race (stale version, unique clash, busy database) becomes WriteConflict."""
+    try:
+        session.commit()
+    except (IntegrityError, StaleDataError, OperationalError) as exc:
+        session.rollback()
+        session.info.pop("task_sessions", None)
+        raise WriteConflict(str(exc).splitlines()[0]) from exc
+
+
+def flush(session: Session) -> None:
+    """Flush pending changes, translating lost races like commit()."""
+    try:
+        session.flush()
+    except (IntegrityError, StaleDataError) as exc:
+        session.rollback()
+        raise WriteConflict(str(exc).splitlines()[0]) from exc
+
+
+# ------------------------------------------------------------------ studies
+
+
+def get_study(session: Session, *, study_id: str, for_update: bool = False) -> StudyRow | None:
+    """A study by id (locked for update where the database supports it)."""
+    stmt = select(StudyRow).where(StudyRow.id == study_id)
+    if for_update:
+        stmt = stmt.with_for_update()
+    return session.scalars(stmt).one_or_none()
+
+
+def list_studies(session: Session) -> list[StudyRow]:
+    """Every study, newest first."""
+    return list(session.scalars(select(StudyRow).order_by(StudyRow.created_at.desc(), StudyRow.id)))
+
+
+def add_study(session: Session, *, values: dict[str, Any]) -> StudyRow:
+    """Insert a study."""
+    row = StudyRow(**values)
+    session.add(row)
+    flush(session)
+    return row
+
+
+# ------------------------------------------------------------------ participants
+
+
+def get_participant_by_token(session: Session, *, token: str) -> ParticipantRow | None:
+    """The participant whose secret token this is."""
+    return session.scalars(select(ParticipantRow).where(ParticipantRow.token == token)).one_or_none()
+
+
+def get_participant(session: Session, *, study_id: str, participant_id: int) -> ParticipantRow | None:
+    """A participant of a study by numeric id."""
+    stmt = select(ParticipantRow).where(ParticipantRow.study_id == study_id, ParticipantRow.id == participant_id)
+    return session.scalars(stmt).one_or_none()
+
+
+def find_participant_by_external_id(session: Session, *, study_id: str, prolific_pid: str) -> ParticipantRow | None:
+    """The participant who joined a study with this external (e.g. Prolific) id."""
+    stmt = select(ParticipantRow).where(ParticipantRow.study_id == study_id, ParticipantRow.prolific_pid == prolific_pid)
+    return session.scalars(stmt).one_or_none()
+
+
+def add_participant(session: Session, *, values: dict[str, Any]) -> ParticipantRow:
+    """Insert a participant."""
+    row = ParticipantRow(**values)
+    session.add(row)
+    flush(session)
+    return row
+
+
+def list_participants(session: Session, *, study_id: str) -> list[ParticipantRow]:
+    """A study's participants in joining order."""
+    stmt = select(ParticipantRow).where(ParticipantRow.study_id == study_id).order_by(ParticipantRow.id)
+    return list(session.scalars(stmt))
+
+
+def count_by_condition(session: Session, *, study_id: str, active_since: datetime) -> dict[str, int]:
+    """Participants per condition who finished or whose last request came after active_since."""
+    counted = (ParticipantRow.stage == "done") | (
+        (ParticipantRow.stage != "withdrawn") & (ParticipantRow.last_activity_at >= active_since)
+    )
+    stmt = (
+        select(ParticipantRow.condition, func.count())
+        .where(ParticipantRow.study_id == study_id, counted)
+        .group_by(ParticipantRow.condition)
+    )
+    return {condition: int(n) for condition, n in session.execute(stmt)}
+
+
+def touch(participant: ParticipantRow) -> None:
+    """Record activity now."""
+    participant.last_activity_at = utcnow()
+
+
+# ------------------------------------------------------------------ task sessions
+
+
+def get_task_session(session: Session, *, participant_id: int, task_index: int) -> TaskSessionRow | None:
+    """A participant's teaching session for one task (remembered for the rest of the transaction)."""
+    cache = session.info.setdefault("task_sessions", {})
+    row = cache.get((participant_id, task_index))
+    if row is not None:
+        return row
+    stmt = select(TaskSessionRow).where(
+        TaskSessionRow.participant_id == participant_id, TaskSessionRow.task_index == task_index
+    )
+    row = session.scalars(stmt).one_or_none()
+    if row is not None:
+        cache[(participant_id, task_index)] = row
+    return row
+
+
+def add_task_session(session: Session, *, participant_id: int, task_index: int, state_json: str) -> TaskSessionRow:
+    """Insert a participant's teaching session for one task."""
+    row = TaskSessionRow(
+        participant_id=participant_id, task_index=task_index, state_json=state_json, demo_placed=[], demo_trace=[]
+    )
+    session.add(row)
+    flush(session)
+    session.info.setdefault("task_sessions", {})[(participant_id, task_index)] = row
+    return row
+
+
+def task_sessions_of(session: Session, *, participant_id: int) -> list[TaskSessionRow]:
+    """A participant's teaching sessions in task order."""
+    stmt = select(TaskSessionRow).where(TaskSessionRow.participant_id == participant_id).order_by(TaskSessionRow.task_index)
+    return list(session.scalars(stmt))
+
+
+# ------------------------------------------------------------------ events
+
+
+def find_event_by_client_id(session: Session, *, participant_id: int, client_event_id: str) -> EventRow | None:
+    """The event a client already submitted under this id, if any."""
+    stmt = select(EventRow).where(EventRow.participant_id == participant_id, EventRow.client_event_id == client_event_id)
+    return session.scalars(stmt).one_or_none()
+
+
+def append_event(
+    session: Session,
+    *,
+    participant: ParticipantRow,
+    kind: str,
+    payload: dict[str, Any],
+    app_version: str,
+    task_index: int | None = None,
+    step_kind: str | None = None,
+    step_index: int | None = None,
+    client_event_id: str | None = None,
+    request_digest: str | None = None,
+) -> EventRow:
+    """Append one event to a participant's log (sequence numbers are dense per participant)."""
+    participant.n_events = (participant.n_events or 0) + 1
+    participant.last_activity_at = utcnow()
+    row = EventRow(
+        participant_id=participant.id,
+        seq=participant.n_events,
+        client_event_id=client_event_id,
+        request_digest=request_digest,
+        kind=kind,
+        task_index=task_index,
+        step_kind=step_kind,
+        step_index=step_index,
+        payload=payload,
+        app_version=app_version,
+        created_at=participant.last_activity_at,
+    )
+    session.add(row)
+    return row
+
+
+# ------------------------------------------------------------------ exports
+
+
+def iter_study_events(session: Session, *, study_id: str) -> Iterator[EventRow]:
+    """A study's events by participant then sequence, fetched in batches."""
+    stmt = (
+        select(EventRow)
+        .join(ParticipantRow, EventRow.participant_id == ParticipantRow.id)
+        .where(ParticipantRow.study_id == study_id)
+        .order_by(EventRow.participant_id, EventRow.seq)
+        .execution_options(yield_per=500)
+    )
+    yield from session.scalars(stmt)
+
+
+def iter_study_events_of_kind(session: Session, *, study_id: str, kind: str) -> Iterator[EventRow]:
+    """A study's events of one kind, by participant then sequence."""
+    stmt = (
+        select(EventRow)
+        .join(ParticipantRow, EventRow.participant_id == ParticipantRow.id)
+        .where(ParticipantRow.study_id == study_id, EventRow.kind == kind)
+        .order_by(EventRow.participant_id, EventRow.seq)
+        .execution_options(yield_per=500)
+    )
+    yield from session.scalars(stmt)
+
+
+def iter_study_task_sessions(session: Session, *, study_id: str) -> Iterator[TaskSessionRow]:
+    """A study's teaching sessions by participant then task."""
+    stmt = (
+        select(TaskSessionRow)
+        .join(ParticipantRow, TaskSessionRow.participant_id == ParticipantRow.id)
+        .where(ParticipantRow.study_id == study_id)
+        .order_by(TaskSessionRow.participant_id, TaskSessionRow.task_index)
+        .execution_options(yield_per=200)
+    )
+    yield from session.scalars(stmt)

@@ -1,0 +1,123 @@
+"""Tables: studies, participants, one teaching session per participant and task, and the append-only event log."""
+
+from __future__ import annotations
+
+from datetime import datetime, timezone
+from typing import Any
+
+from sqlalchemy import JSON, Boolean, DateTime, ForeignKey, Integer, MetaData, String, Text, UniqueConstraint
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
+
+# Deterministic constraint names so that migrations (batch mode on SQLite) can refer to them.
+NAMING = {
+    "ix": "ix_%(column_0_label)s",
+    "uq": "uq_%(table_name)s_%(column_0_name)s",
+    "ck": "ck_%(table_name)s_%(constraint_name)s",
+    "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
+    "pk": "pk_%(table_name)s",
+}
+
+
+def utcnow() -> datetime:
+    """The current time in UTC (timezone-aware)."""
+    return datetime.now(timezone.utc)
+
+
+class Base(DeclarativeBase):
+    """Declarative base with the naming convention above."""
+
+    metadata = MetaData(naming_convention=NAMING)
+
+
+class StudyRow(Base):
+    """A study: its tasks, conditions, counts, questionnaire and status."""
+
+    __tablename__ = "studies"
+
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)
+    name: Mapped[str] = mapped_column(String(200))
+    tasks: Mapped[list[dict[str, Any]]] = mapped_column(JSON)
+    conditions: Mapped[list[str]] = mapped_column(JSON)
+    assignment: Mapped[str] = mapped_column(String(16))
+    n_practice: Mapped[int] = mapped_column(Integer)
+    n_demonstrations: Mapped[int] = mapped_column(Integer)
+    n_queries: Mapped[int] = mapped_column(Integer)
+    n_tests: Mapped[int] = mapped_column(Integer)
+    prior: Mapped[str] = mapped_column(String(64))
+    criterion: Mapped[str] = mapped_column(String(64))
+    questionnaire: Mapped[list[dict[str, Any]]] = mapped_column(JSON)
+    consent_text: Mapped[str] = mapped_column(Text)
+    consent_version: Mapped[str] = mapped_column(String(64))
+    completion_url: Mapped[str | None] = mapped_column(String(500), nullable=True)
+    status: Mapped[str] = mapped_column(String(16), default="draft")
+    pilot: Mapped[bool] = mapped_column(Boolean, default=False)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)
+
+
+class ParticipantRow(Base):
+    """A participant: secret token, external ids, consent, condition, stage and completion."""
+
+    __tablename__ = "participants"
+    __table_args__ = (UniqueConstraint("study_id", "prolific_pid", name="uq_participants_study_external"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    token: Mapped[str] = mapped_column(String(64), unique=True, index=True)
+    study_id: Mapped[str] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
+    prolific_pid: Mapped[str | None] = mapped_column(String(128), nullable=True)
+    external_study_id: Mapped[str | None] = mapped_column(String(128), nullable=True)
+    external_session_id: Mapped[str | None] = mapped_column(String(128), nullable=True)
+    condition: Mapped[str] = mapped_column(String(16))
+    seed: Mapped[int] = mapped_column(Integer)
+    pilot: Mapped[bool] = mapped_column(Boolean, default=False)
+    stage: Mapped[str] = mapped_column(String(16), default="consent")
+    task_index: Mapped[int] = mapped_column(Integer, default=0)
+    consent_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    consent_version: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    completion_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    last_activity_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    n_events: Mapped[int] = mapped_column(Integer, default=0)
+    version: Mapped[int] = mapped_column(Integer, nullable=False)
+
+    # Optimistic locking: two writers that both read version n cannot both store version n + 1.
+    __mapper_args__ = {"version_id_col": version}
+
+
+class TaskSessionRow(Base):
+    """One teaching session (one task) of a participant: the core's state and the step in progress."""
+
+    __tablename__ = "task_sessions"
+    __table_args__ = (UniqueConstraint("participant_id", "task_index", name="uq_task_sessions_participant_task"),)
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id", ondelete="CASCADE"), index=True)
+    task_index: Mapped[int] = mapped_column(Integer)
+    state_json: Mapped[str] = mapped_column(Text)
+    demo_placed: Mapped[list[str]] = mapped_column(JSON, default=list)
+    demo_trace: Mapped[list[list[str]]] = mapped_column(JSON, default=list)
+    execution: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+
+
+class EventRow(Base):
+    """One entry of a participant's append-only log; client_event_id makes retries idempotent."""
+
+    __tablename__ = "events"
+    __table_args__ = (
+        UniqueConstraint("participant_id", "seq", name="uq_events_participant_seq"),
+        UniqueConstraint("participant_id", "client_event_id", name="uq_events_participant_client_id"),
+    )
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    participant_id: Mapped[int] = mapped_column(ForeignKey("participants.id", ondelete="CASCADE"), index=True)
+    seq: Mapped[int] = mapped_column(Integer)
+    client_event_id: Mapped[str | None] = mapped_column(String(128), nullable=True)
+    request_digest: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    kind: Mapped[str] = mapped_column(String(32))
+    task_index: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    step_kind: Mapped[str | None] = mapped_column(String(16), nullable=True)
+    step_index: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    payload: Mapped[dict[str, Any]] = mapped_column(JSON)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+    app_version: Mapped[str] = mapped_column(String(32))

@@ -1,0 +1,30 @@
+"""Errors raised by services and mapped to HTTP in one place (web/errors.py)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class TableTeachError(Exception):
+    """Base class: a message that says what was wrong and what was expected."""
+
+    def __init__(self, message: str, *, state: Any = None) -> None:
+        super().__init__(message)
+        self.message = message
+        self.state = state
+
+
+class NotFound(TableTeachError):
+    """The named study, participant or resource does not exist (HTTP 404)."""
+
+
+class Conflict(TableTeachError):
+    """The request clashes with the current state, e.g. out of order or a repeated id (HTTP 409)."""
+
+
+class InvalidInput(TableTeachError):
+    """The request is well-formed but its values are not acceptable (HTTP 422)."""
+
+
+class NotAuthenticated(TableTeachError):
+    """Missing or wrong credentials (HTTP 401)."""

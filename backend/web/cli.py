@@ -1,0 +1,134 @@
+"""Server subcommands of `tableteach`: serve, teach (scripted teacher over HTTP), export, hash-token."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from typing import Any
+
+from ..config import Settings
+
+
+def _settings(args: argparse.Namespace) -> Settings:
+    overrides: dict[str, Any] = {}
+    for name in ("host", "port", "database_url"):
+        value = getattr(args, name, None)
+        if value is not None:
+            overrides[name] = value
+    if getattr(args, "dev", False) or getattr(args, "demo", False):
+        overrides["dev_mode"] = True
+    return Settings(**overrides)
+
+
+def cmd_serve(args: argparse.Namespace) -> None:
+    """Migrate the database, optionally seed the demo study, and serve until interrupted."""
+    import uvicorn
+
+    from .. import services
+    from ..db.migrate import upgrade_head
+    from .app import create_app
+
+    settings = _settings(args)
+    app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
+    upgrade_head(settings.database_url)
+    base = settings.public_url or f"http://{settings.host}:{settings.port}"
+    lines = [f"TableTeach serving on http://{settings.host}:{settings.port} (database {_safe_url(settings.database_url)})",
+             f"dashboard: {base}/dashboard   API docs: {base}/docs"]
+    if args.demo:
+        study = services.seed_demo_study(app.state.context)
+        lines += [f"demo study id: {study['id']}",
+                  f"participant link: {base}/study/{study['id']}/join?PROLIFIC_PID=demo-participant"]
+    if app.state.dev_token:
+        lines.append(f"development experimenter token (dev mode only, new on every start): {app.state.dev_token}")
+    print("\n".join(lines), flush=True)
+    uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, access_log=False,
+                timeout_graceful_shutdown=5)
+
+
+def _safe_url(url: str) -> str:
+    """The database URL without its password."""
+    from urllib.parse import urlsplit, urlunsplit
+
+    parts = urlsplit(url)
+    if parts.password:
+        netloc = parts.netloc.replace(f":{parts.password}@", ":***@")
+        return urlunsplit(parts._replace(netloc=netloc))
+    return url
+
+
+def cmd_teach(args: argparse.Namespace) -> dict:
+    """A scripted teacher completes one participant session over HTTP."""
+    import httpx
+
+    from ..client import ApiError, run_teacher
+
+    if not 0.0 <= args.noise <= 1.0:
+        raise ValueError(f"--noise must be a probability in [0, 1], got {args.noise}")
+    try:
+        run = run_teacher(args.server, args.study, args.ground_truth, noise=args.noise, seed=args.seed,
+                          prolific_pid=args.prolific_pid)
+    except ApiError as exc:
+        raise ValueError(f"the server refused a request: {exc}") from exc
+    except httpx.HTTPError as exc:
+        raise ValueError(f"cannot reach {args.server}: {exc}") from exc
+    return {"study_id": args.study, **run.summary()}
+
+
+def cmd_export(args: argparse.Namespace) -> dict:
+    """Download a study's CSV exports into a folder."""
+    import httpx
+
+    from ..client import ApiError, ExperimenterClient
+
+    client = ExperimenterClient(args.server, token=args.token)
+    try:
+        rows = client.export_all(args.study, args.out)
+    except ApiError as exc:
+        raise ValueError(f"the server refused the export: {exc}") from exc
+    except httpx.HTTPError as exc:
+        raise ValueError(f"cannot reach {args.server}: {exc}") from exc
+    finally:
+        client.close()
+    return {"study_id": args.study, "out": str(args.out), "rows": rows}
+
+
+def cmd_hash_token(args: argparse.Namespace) -> dict:
+    """Hash an experimenter secret for TABLETEACH_EXPERIMENTER_TOKEN_HASH (reads it from stdin)."""
+    from .auth import hash_secret
+
+    secret = sys.stdin.readline().rstrip("\n")
+    if not secret:
+        raise ValueError("no secret on stdin; pipe it in, e.g. `printf %s \"$TOKEN\" | tableteach hash-token`")
+    return {"experimenter_token_hash": hash_secret(secret)}
+
+
+def register(sub: argparse._SubParsersAction) -> None:
+    """Add the server subcommands to the `tableteach` parser."""
+    serve = sub.add_parser("serve", help="migrate the database and run the study server")
+    serve.add_argument("--host", help="interface to listen on (default 127.0.0.1; TABLETEACH_HOST)")
+    serve.add_argument("--port", type=int, help="port (default 8000; TABLETEACH_PORT)")
+    serve.add_argument("--database-url", help="SQLAlchemy URL (default sqlite:///var/tableteach.db)")
+    serve.add_argument("--demo", action="store_true", help="seed the demo study (implies --dev)")
+    serve.add_argument("--dev", action="store_true", help="dev mode: a generated experimenter token if none is set")
+    serve.add_argument("--log-level", default="warning", choices=["critical", "error", "warning", "info", "debug"])
+    serve.set_defaults(run=cmd_serve)
+
+    teach = sub.add_parser("teach", help="a scripted teacher completes a participant session over HTTP")
+    teach.add_argument("--server", required=True, help="server base URL, e.g. http://127.0.0.1:8000")
+    teach.add_argument("--study", required=True, help="study id")
+    teach.add_argument("--ground-truth", required=True, action="append",
+                       help="the teacher's formula, or task1 / task2; repeat once per task of the study")
+    teach.add_argument("--noise", type=float, default=0.0, help="probability of a flipped verdict (default 0)")
+    teach.add_argument("--seed", type=int, default=0, help="the teacher's random seed")
+    teach.add_argument("--prolific-pid", help="external participant id (a rerun with it resumes the same session)")
+    teach.set_defaults(run=cmd_teach)
+
+    export = sub.add_parser("export", help="download a study's CSV exports")
+    export.add_argument("--server", required=True, help="server base URL")
+    export.add_argument("--study", required=True, help="study id")
+    export.add_argument("--token", required=True, help="experimenter token")
+    export.add_argument("--out", required=True, help="folder to write participants/events/beliefs/questionnaire.csv")
+    export.set_defaults(run=cmd_export)
+
+    hash_token = sub.add_parser("hash-token", help="hash an experimenter secret read from stdin")
+    hash_token.set_defaults(run=cmd_hash_token)

@@ -1,0 +1,53 @@
+"""Dependencies: the services context, the participant's token and the experimenter check."""
+
+from __future__ import annotations
+
+from typing import Annotated
+
+from fastapi import Depends, Header, Request
+from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+
+from ..errors import NotAuthenticated
+from ..services import Context
+from .auth import SecretChecker
+
+_participant_bearer = HTTPBearer(auto_error=False, scheme_name="ParticipantToken",
+                                 description="the participant's token from their link (/p/{token})")
+_experimenter_bearer = HTTPBearer(auto_error=False, scheme_name="ExperimenterToken",
+                                  description="the experimenter token or password from the server settings")
+
+
+def get_context(request: Request) -> Context:
+    """The services context the app was built with."""
+    return request.app.state.context
+
+
+def participant_token(
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_participant_bearer)],
+) -> str:
+    """The bearer token of the participant making the request."""
+    if credentials is None or not credentials.credentials:
+        raise NotAuthenticated("missing participant token: send Authorization: Bearer <token>")
+    return credentials.credentials
+
+
+def require_experimenter(
+    request: Request,
+    credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_experimenter_bearer)],
+) -> None:
+    """Refuse the request unless it carries the experimenter secret."""
+    checker: SecretChecker = request.app.state.experimenter
+    if credentials is None or not credentials.credentials:
+        raise NotAuthenticated("experimenter endpoint: send Authorization: Bearer <experimenter token>")
+    if not checker.check(credentials.credentials):
+        raise NotAuthenticated("wrong experimenter token")
+
+
+ContextDep = Annotated[Context, Depends(get_context)]
+TokenDep = Annotated[str, Depends(participant_token)]
+IdempotencyKey = Annotated[
+    str | None,
+    Header(alias="Idempotency-Key", min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$",
+           description="a fresh id per action (e.g. a UUID); repeating it repeats nothing"),
+]
+Experimenter = Depends(require_experimenter)

@@ -1,0 +1,56 @@
+"""The one place where errors become HTTP answers: {"detail": message, "state": participant state or null}."""
+
+from __future__ import annotations
+
+import logging
+
+from fastapi import FastAPI, Request
+from fastapi.exceptions import RequestValidationError
+from fastapi.responses import JSONResponse
+from starlette.exceptions import HTTPException as StarletteHTTPException
+
+from ..core.session import ProtocolError
+from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, TableTeachError
+
+log = logging.getLogger(__name__)
+
+STATUS = {NotFound: 404, Conflict: 409, InvalidInput: 422, NotAuthenticated: 401}
+
+
+def _answer(status: int, detail: str, state: object = None, headers: dict[str, str] | None = None) -> JSONResponse:
+    return JSONResponse({"detail": detail, "state": state}, status_code=status, headers=headers)
+
+
+def _validation_message(exc: RequestValidationError) -> str:
+    parts = []
+    for err in exc.errors()[:5]:
+        where = ".".join(str(x) for x in err.get("loc", ()) if x != "body") or "request"
+        parts.append(f"{where}: {err.get('msg', 'invalid')}")
+    return "; ".join(parts) or "invalid request"
+
+
+def install(app: FastAPI) -> None:
+    """Register the exception handlers."""
+
+    @app.exception_handler(TableTeachError)
+    async def _service_error(_request: Request, exc: TableTeachError) -> JSONResponse:
+        status = next((code for cls, code in STATUS.items() if isinstance(exc, cls)), 400)
+        headers = {"WWW-Authenticate": "Bearer"} if status == 401 else None
+        return _answer(status, exc.message, exc.state, headers)
+
+    @app.exception_handler(ProtocolError)
+    async def _protocol_error(_request: Request, exc: ProtocolError) -> JSONResponse:
+        return _answer(409, str(exc))
+
+    @app.exception_handler(RequestValidationError)
+    async def _invalid(_request: Request, exc: RequestValidationError) -> JSONResponse:
+        return _answer(422, _validation_message(exc))
+
+    @app.exception_handler(StarletteHTTPException)
+    async def _http(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
+        return _answer(exc.status_code, str(exc.detail), None, getattr(exc, "headers", None))
+
+    @app.exception_handler(Exception)
+    async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+        log.exception("unexpected error on %s %s", request.method, request.url.path)
+        return _answer(500, "internal error; it has been logged")

@@ -1,0 +1,177 @@
+"""Request and response models of the REST API (kept apart from the table classes)."""
+
+from __future__ import annotations
+
+from typing import Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..core.domain import DINNER_OBJECTS
+from ..core.priors import NAMED_PRIORS
+from ..core.puns import CRITERIA
+
+Id = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
+ObjectName = Literal[DINNER_OBJECTS]  # type: ignore[valid-type]
+StepKind = Literal["practice", "demonstration", "query", "test"]
+
+
+class Strict(BaseModel):
+    """Unknown fields are an error: a typo should not pass silently."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+
+class StepGuard(Strict):
+    """Where the client believes the session is; if given and stale, the answer is 409 with the current state."""
+
+    task_index: int | None = Field(None, ge=0, le=100)
+    step_kind: StepKind | None = None
+    step_index: int | None = Field(None, ge=0, le=100)
+
+
+class ConsentIn(Strict):
+    agree: bool
+    consent_version: str = Field(min_length=1, max_length=64)
+
+
+class PlacementIn(StepGuard):
+    object: ObjectName  # type: ignore[valid-type]
+
+
+class AssessmentIn(StepGuard):
+    acceptable: bool | None = Field(description="required for queries; optional for test executions")
+
+
+class QuestionnaireIn(Strict):
+    answers: dict[str, int | str | None] = Field(max_length=100)
+
+
+class JoinIn(Strict):
+    prolific_pid: str | None = Field(None, min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
+    study_id: str | None = Field(None, min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
+    session_id: str | None = Field(None, min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
+
+
+class ParticipantState(BaseModel):
+    """What a participant sees; every participant action answers with it."""
+
+    participant_id: int
+    token: str
+    study_id: str
+    stage: Literal["consent", "instructions", "task", "questionnaire", "done", "withdrawn"]
+    n_events: int
+    objects: list[str]
+    consent: dict[str, Any]
+    task: dict[str, Any] | None
+    step: dict[str, Any] | None
+    demonstration: dict[str, Any] | None
+    execution: dict[str, Any] | None
+    questionnaire: list[dict[str, Any]] | None
+    completion: dict[str, Any] | None
+    replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
+
+
+class JoinOut(BaseModel):
+    participant_id: int
+    token: str
+    created: bool
+    state: ParticipantState
+
+
+class TaskIn(Strict):
+    key: Literal["task1", "task2", "custom", "none"]
+    ground_truth: str | None = Field(None, max_length=2000)
+    name: str | None = Field(None, max_length=200)
+    instructions: str | None = Field(None, max_length=5000)
+
+
+class ItemIn(Strict):
+    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
+    text: str = Field(max_length=2000)
+    kind: Literal["likert5", "rating10", "text"]
+    required: bool = True
+
+
+class StudyIn(Strict):
+    name: str = Field("Untitled study", max_length=200)
+    tasks: list[TaskIn] = Field(min_length=1, max_length=10)
+    conditions: list[Literal["active", "random", "batch"]] = Field(["active"], min_length=1, max_length=3)
+    assignment: Literal["random", "balanced"] = "balanced"
+    n_practice: int = Field(1, ge=0, le=20)
+    n_demonstrations: int = Field(2, ge=0, le=20)
+    n_queries: int = Field(3, ge=0, le=20)
+    n_tests: int = Field(3, ge=0, le=20)
+    prior: Literal[tuple(NAMED_PRIORS)] = "chains-2020-sat"  # type: ignore[valid-type]
+    criterion: Literal[CRITERIA] = "min-regret"  # type: ignore[valid-type]
+    questionnaire: list[ItemIn] = Field(default_factory=list, max_length=100)
+    consent_text: str | None = Field(None, max_length=20000)
+    consent_version: str | None = Field(None, max_length=64)
+    completion_url: str | None = Field(None, max_length=500, pattern=r"^https?://\S+$",
+                                       description="redirect after completion; {code} is replaced")
+    pilot: bool = False
+
+
+class StudyOut(BaseModel):
+    id: str
+    name: str
+    status: Literal["draft", "open", "closed"]
+    pilot: bool
+    tasks: list[dict[str, Any]]
+    conditions: list[str]
+    assignment: str
+    n_practice: int
+    n_demonstrations: int
+    n_queries: int
+    n_tests: int
+    prior: str
+    criterion: str
+    questionnaire: list[dict[str, Any]]
+    consent_text: str
+    consent_version: str
+    completion_url: str | None
+    created_at: str | None
+    updated_at: str | None
+
+
+class ParticipantRowOut(BaseModel):
+    participant_id: int
+    condition: str
+    stage: str
+    task_index: int
+    phase: str | None
+    status: Literal["active", "idle", "done", "withdrawn"]
+    pilot: bool
+    prolific_pid: str | None
+    created_at: str | None
+    last_activity_at: str | None
+    finished_at: str | None
+    n_events: int
+    completion_code: str | None
+
+
+class BeliefOut(BaseModel):
+    participant_id: int
+    condition: str
+    stage: str
+    tasks: list[dict[str, Any]]
+
+
+class ErrorOut(BaseModel):
+    """Every error: what was wrong and what was expected; for participant conflicts, the current state."""
+
+    detail: str
+    state: ParticipantState | None = None
+
+
+ERROR_MEANINGS = {
+    400: "the body could not be parsed",
+    401: "missing or wrong token",
+    404: "no such study, participant or export",
+    409: "out of order, stale step, reused Idempotency-Key or study not open; includes the current state",
+    422: "malformed request or unacceptable values",
+}
+
+
+def error_responses(*codes: int) -> dict[int | str, dict[str, Any]]:
+    """OpenAPI entries for the error answers a router can give."""
+    return {code: {"model": ErrorOut, "description": ERROR_MEANINGS[code]} for code in codes}

@@ -1,0 +1,50 @@
+"""Small helpers for in-process API tests (TestClient)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+from .conftest import EXPERIMENTER_TOKEN, study_spec
+
+EXP = {"Authorization": f"Bearer {EXPERIMENTER_TOKEN}"}
+
+
+def bearer(token: str) -> dict[str, str]:
+    """Authorization header of a participant."""
+    return {"Authorization": f"Bearer {token}"}
+
+
+def make_study(client: Any, conditions: list[str] | None = None, **extra: Any) -> str:
+    """Create and open a study in-process; its id."""
+    response = client.post("/api/v1/studies", json=study_spec(conditions or ["active"], **extra), headers=EXP)
+    assert response.status_code == 201, response.text
+    study_id = response.json()["id"]
+    assert client.post(f"/api/v1/studies/{study_id}/open", headers=EXP).status_code == 200
+    return study_id
+
+
+def join(client: Any, study_id: str, **body: Any) -> tuple[str, dict[str, Any]]:
+    """Join; the token and state."""
+    response = client.post(f"/api/v1/studies/{study_id}/join", json=body)
+    assert response.status_code in (200, 201), response.text
+    return response.json()["token"], response.json()["state"]
+
+
+def to_teaching(client: Any, study_id: str) -> tuple[str, dict[str, Any]]:
+    """Join, consent and read the instructions: the first task's practice trial is next."""
+    token, state = join(client, study_id)
+    h = bearer(token)
+    assert client.post("/api/v1/me/consent", json={"agree": True, "consent_version": state["consent"]["version"]},
+                       headers=h).status_code == 200
+    response = client.post("/api/v1/me/instructions", headers=h)
+    assert response.status_code == 200, response.text
+    return token, response.json()
+
+
+def demonstrate(client: Any, token: str, objects: list[str]) -> dict[str, Any]:
+    """Place objects and finish the demonstration."""
+    for obj in objects:
+        assert client.post("/api/v1/me/placements", json={"object": obj}, headers=bearer(token)).status_code == 200
+    response = client.post("/api/v1/me/demonstration/finish", headers=bearer(token))
+    assert response.status_code == 200, response.text
+    return response.json()
