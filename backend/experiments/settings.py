@@ -1,0 +1,136 @@
+"""The settings of a simulation sweep: what the paper's experiment varies, validated up front."""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+from ..core.priors import DEFAULT_PRIOR, NAMED_PRIORS
+from ..core.teachers import DEMO_MODES
+
+PROTOCOLS = ("active", "random", "batch")
+N_DEMONSTRATIONS = 2  # the paper's protocols all start from two demonstrations
+
+# Experiment domain -> (core task, fixed ground truth or None for a random one per run).
+DOMAINS: dict[str, tuple[str, str | None]] = {
+    "synthetic": ("synthetic", None),
+    "dinner-task1": (
+        "dinner",
+        "F(dinner_plate) & F(small_plate) & F(bowl) & F(knife) & F(fork) & (!small_plate U dinner_plate)"
+        " & (!bowl U small_plate) & (!bowl U dinner_plate)",
+    ),
+    "dinner-task2": ("dinner", "G(!small_plate) & F(dinner_plate) & F(bowl) & (!bowl U dinner_plate)"),
+    "dinner-random": ("dinner", None),
+}
+TRUTH_SAMPLERS = ("prior", "authors")
+FIXED_TRUTH = "fixed"
+DEFAULT_N_QUERY = (1, 2, 3, 4, 5, 6)
+
+
+@dataclass(frozen=True)
+class ExperimentSettings:
+    """Everything that determines a sweep's numbers (not how or where it runs)."""
+
+    domain: str = "synthetic"
+    runs: int = 200
+    n_query: tuple[int, ...] = DEFAULT_N_QUERY
+    seed: int = 0
+    prior: str = DEFAULT_PRIOR
+    truth_sampler: str = "prior"
+    demo_mode: str = "optimal"
+    noise: float = 0.0
+    n_demonstrations: int = field(default=N_DEMONSTRATIONS)
+
+    def __post_init__(self) -> None:
+        if self.domain not in DOMAINS:
+            raise ValueError(f"unknown domain {self.domain!r}; expected one of {', '.join(DOMAINS)}")
+        _whole("runs", self.runs, minimum=1)
+        _whole("seed", self.seed, minimum=0)
+        _whole("n_demonstrations", self.n_demonstrations, minimum=0)
+        if not self.n_query:
+            raise ValueError("n_query needs at least one value, e.g. 1,2,3")
+        for n in self.n_query:
+            _whole("n_query", n, minimum=0)
+        if list(self.n_query) != sorted(set(self.n_query)):
+            raise ValueError(f"n_query values must be distinct and increasing, got {list(self.n_query)}")
+        if self.prior not in NAMED_PRIORS:
+            raise ValueError(f"unknown prior {self.prior!r}; expected one of {', '.join(NAMED_PRIORS)}")
+        fixed = DOMAINS[self.domain][1] is not None
+        allowed = (FIXED_TRUTH,) if fixed else TRUTH_SAMPLERS
+        if self.truth_sampler not in allowed:
+            why = f"domain {self.domain!r} has a fixed ground truth" if fixed else "ground truths are drawn per run"
+            raise ValueError(
+                f"truth sampler {self.truth_sampler!r} does not apply: {why}; expected one of {', '.join(allowed)}"
+            )
+        if self.demo_mode not in DEMO_MODES:
+            raise ValueError(f"unknown demonstration mode {self.demo_mode!r}; expected one of {', '.join(DEMO_MODES)}")
+        if isinstance(self.noise, bool) or not isinstance(self.noise, (int, float)) or not 0.0 <= self.noise <= 1.0:
+            raise ValueError(f"noise must be a probability in [0, 1], got {self.noise!r}")
+
+    @property
+    def task(self) -> str:
+        """The core task (domain of propositions) the experiment domain runs on."""
+        return DOMAINS[self.domain][0]
+
+    @property
+    def fixed_truth(self) -> str | None:
+        """The ground-truth formula of a fixed-truth domain, else None."""
+        return DOMAINS[self.domain][1]
+
+    @property
+    def max_n_query(self) -> int:
+        """The longest query sequence a run computes (shorter ones are its prefixes)."""
+        return max(self.n_query)
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON-ready form (lists for tuples)."""
+        data = asdict(self)
+        data["n_query"] = list(self.n_query)
+        return data
+
+    @staticmethod
+    def from_json(data: dict[str, Any]) -> "ExperimentSettings":
+        """Rebuild from ``to_json`` output; ValueError names what is malformed."""
+        try:
+            return ExperimentSettings(**{**data, "n_query": tuple(data["n_query"])})
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"malformed experiment settings {json.dumps(data)}: {exc}") from exc
+
+
+def resolve_truth_sampler(domain: str, requested: str | None) -> str:
+    """The truth sampler a domain uses: 'fixed' for the study tasks, else the request (default 'prior')."""
+    if domain not in DOMAINS:
+        raise ValueError(f"unknown domain {domain!r}; expected one of {', '.join(DOMAINS)}")
+    if DOMAINS[domain][1] is not None:
+        if requested not in (None, FIXED_TRUTH):
+            raise ValueError(
+                f"--truth-sampler {requested} does not apply to {domain}, whose ground truth is fixed; "
+                "use synthetic or dinner-random to draw ground truths"
+            )
+        return FIXED_TRUTH
+    return requested or "prior"
+
+
+def parse_n_query(text: str) -> tuple[int, ...]:
+    """Parse '1,2,3' or '1-6' (or a mix such as '0,2-4') into sorted distinct counts."""
+    values: set[int] = set()
+    for part in text.split(","):
+        part = part.strip()
+        span = re.fullmatch(r"(\d+)-(\d+)", part)
+        try:
+            values.update(range(int(span[1]), int(span[2]) + 1) if span else [int(part)])
+        except ValueError:
+            raise ValueError(
+                f"--n-query {text!r}: {part!r} is not a whole number; expected e.g. 1,2,3 or 1-6"
+            ) from None
+    negative = sorted(v for v in values if v < 0)
+    if negative:
+        raise ValueError(f"--n-query {text!r}: the number of queries must be >= 0, got {negative[0]}")
+    return tuple(sorted(values))
+
+
+def _whole(name: str, value: Any, *, minimum: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int) or value < minimum:
+        raise ValueError(f"{name} must be a whole number >= {minimum}, got {value!r}")

@@ -1,0 +1,165 @@
+"""One simulated run of the paper's experiment: Active, Random and Batch on a shared ground truth.
+
+Within a run the three protocols share the ground truth and the first demonstrations (paired
+comparison). Each protocol then computes its longest sequence (max n_query queries, or as many
+extra demonstrations for Batch) once; the rows for a smaller n_query are prefixes of that same
+sequence, which is valid because a query depends only on the belief so far.
+
+Randomness: one numpy SeedSequence per (sweep seed, run index), spawned into independent streams
+for the ground truth, the shared demonstrations, the teacher's label noise and each protocol.
+A run's rows therefore do not depend on which process computes it or in which order.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from ..core.belief import Belief
+from ..core.domain import get_domain
+from ..core.hypotheses import HypothesisSpace, get_space
+from ..core.metrics import similarities
+from ..core.queries import Execution, active_query, random_query
+from ..core.teachers import SimulatedTeacher, authors_ground_truth, sample_ground_truth
+from .settings import PROTOCOLS, ExperimentSettings
+
+COLUMNS = (
+    "run", "seed", "domain", "prior", "protocol", "n_query", "step", "n_executions",
+    "entropy", "similarity", "map_similarity", "map_formula", "ground_truth", "seconds",
+)
+STEP_KINDS = ("prior", "demonstration", "query")
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """The learner's state after one learning step, summarised by the metrics we record."""
+
+    kind: str
+    entropy: float
+    similarity: float
+    map_similarity: float
+    map_formula: str
+    seconds: float
+
+
+def draw_truth(settings: ExperimentSettings, space: HypothesisSpace, rng: np.random.Generator) -> int:
+    """The run's ground-truth clause mask: fixed, from the prior (satisfiable only) or the authors' sampler."""
+    if settings.fixed_truth is not None:
+        return space.domain.clause_space.mask_of_formula(settings.fixed_truth)
+    if settings.truth_sampler == "authors":
+        return authors_ground_truth(space.domain, rng)
+    return sample_ground_truth(space, rng)
+
+
+class _Recorder:
+    """Computes a step's metrics against one ground truth (its similarity vector computed once per run)."""
+
+    def __init__(self, space: HypothesisSpace, truth_mask: int) -> None:
+        self.text_of = space.domain.clause_space.text_of
+        self.truth_mask = truth_mask
+        # Belief.similarity recomputes this vector on every call; a run needs it ~20 times.
+        self.sims = similarities(space, truth_mask)
+
+    def __call__(self, kind: str, belief: Belief, seconds: float) -> StepResult:
+        return StepResult(
+            kind=kind,
+            entropy=belief.entropy + 0.0,  # + 0.0 turns -0.0 into 0.0
+            similarity=float(belief.probs @ self.sims),
+            map_similarity=belief.map_similarity(self.truth_mask),
+            map_formula=self.text_of(belief.map_mask),
+            seconds=seconds,
+        )
+
+
+def _protocol_steps(
+    protocol: str,
+    belief: Belief,
+    teacher: SimulatedTeacher,
+    n_steps: int,
+    learner_rng: np.random.Generator,
+    teacher_rng: np.random.Generator,
+    record: _Recorder,
+) -> list[StepResult]:
+    """The steps a protocol takes after the shared demonstrations."""
+    out: list[StepResult] = []
+    for _ in range(n_steps):
+        started = time.perf_counter()
+        if protocol == "batch":
+            demo: Execution = teacher.demonstrate(teacher_rng)
+            learner_started = time.perf_counter()
+            belief = belief.observe(demo.trace, True)
+            out.append(record("demonstration", belief, time.perf_counter() - learner_started))
+            continue
+        if protocol == "active":
+            execution, _ = active_query(belief, learner_rng)
+        else:
+            execution, _ = random_query(belief, learner_rng)
+        chosen = time.perf_counter()
+        verdict = teacher.assess(execution.trace, teacher_rng)
+        updating = time.perf_counter()
+        belief = belief.observe(execution.trace, verdict)
+        seconds = (chosen - started) + (time.perf_counter() - updating)
+        out.append(record("query", belief, seconds))
+    return out
+
+
+def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
+    """All rows of one run (every protocol, every n_query, every learning step), in sorted order."""
+    streams = np.random.SeedSequence([settings.seed, run]).spawn(3 + len(PROTOCOLS))
+    truth_rng, demo_rng = np.random.default_rng(streams[0]), np.random.default_rng(streams[1])
+    space = get_space(settings.task, settings.prior)
+    domain = get_domain(settings.task)
+    truth = draw_truth(settings, space, truth_rng)
+    teacher = SimulatedTeacher(domain, truth, noise=settings.noise, demo_mode=settings.demo_mode)
+    record = _Recorder(space, truth)
+
+    started = time.perf_counter()
+    belief = Belief.prior(space)
+    shared = [record("prior", belief, time.perf_counter() - started)]
+    for _ in range(settings.n_demonstrations):
+        demo = teacher.demonstrate(demo_rng)
+        started = time.perf_counter()
+        belief = belief.observe(demo.trace, True)
+        shared.append(record("demonstration", belief, time.perf_counter() - started))
+
+    truth_text = domain.clause_space.text_of(truth)
+    rows: list[list[Any]] = []
+    for k, protocol in enumerate(PROTOCOLS):
+        learner_rng = np.random.default_rng(streams[3 + k])
+        # Active and Random replay the same noise stream, so a fallible teacher flips the same
+        # query positions in both; Batch's teacher uses the stream for its extra demonstrations.
+        teacher_rng = np.random.default_rng(streams[3 + k] if protocol == "batch" else streams[2])
+        steps = shared + _protocol_steps(
+            protocol, belief, teacher, settings.max_n_query, learner_rng, teacher_rng, record
+        )
+        for n_query in settings.n_query:
+            for n_executions, step in enumerate(steps[: settings.n_demonstrations + n_query + 1]):
+                rows.append([
+                    run, settings.seed, settings.domain, settings.prior, protocol, n_query, step.kind,
+                    n_executions, step.entropy, step.similarity, step.map_similarity, step.map_formula,
+                    truth_text, step.seconds,
+                ])
+    return rows
+
+
+def run_task_json(task: str) -> str:
+    """Run one task given as JSON {"settings": {...}, "run": i}; return JSON {"run": i, "rows": [...]}.
+
+    This is the only function that crosses a process boundary (worker pool, Dask): JSON in and
+    out, never pickled objects of ours.
+    """
+    data = json.loads(task)
+    settings = ExperimentSettings.from_json(data["settings"])
+    run = data["run"]
+    if isinstance(run, bool) or not isinstance(run, int) or not 0 <= run < settings.runs:
+        raise ValueError(f"run index must be a whole number in [0, {settings.runs}), got {run!r}")
+    return json.dumps({"run": run, "rows": simulate_run(settings, run)})
+
+
+def task_json(settings: ExperimentSettings, run: int) -> str:
+    """The JSON task line for one run."""
+    return json.dumps({"settings": settings.to_json(), "run": run})

@@ -1,0 +1,48 @@
+"""Experiment settings: parsing and validation."""
+
+import pytest
+
+from tableteach.experiments.settings import ExperimentSettings, parse_n_query, resolve_truth_sampler
+
+
+@pytest.mark.parametrize("text, expected", [("1,2,3", (1, 2, 3)), ("1-6", (1, 2, 3, 4, 5, 6)),
+                                            ("0, 2-4, 3", (0, 2, 3, 4)), ("5", (5,))])
+def test_parse_n_query(text, expected):
+    assert parse_n_query(text) == expected
+
+
+@pytest.mark.parametrize("text, message", [("-1", "must be >= 0"), ("1,x", "'x' is not a whole number"),
+                                           ("", "'' is not a whole number")])
+def test_parse_n_query_rejects(text, message):
+    with pytest.raises(ValueError, match=message):
+        parse_n_query(text)
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"domain": "kitchen"}, "unknown domain 'kitchen'; expected one of synthetic, dinner-task1"),
+    ({"runs": 0}, "runs must be a whole number >= 1, got 0"),
+    ({"n_query": (2, 1)}, "distinct and increasing"),
+    ({"n_query": ()}, "at least one value"),
+    ({"prior": "flat"}, "unknown prior 'flat'"),
+    ({"demo_mode": "lazy"}, "unknown demonstration mode 'lazy'"),
+    ({"domain": "dinner-task2", "truth_sampler": "prior"}, "has a fixed ground truth"),
+    ({"truth_sampler": "fixed"}, "ground truths are drawn per run"),
+    ({"noise": -0.1}, r"noise must be a probability in \[0, 1\]"),
+])
+def test_settings_reject(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        ExperimentSettings(**kwargs)
+
+
+def test_settings_round_trip_through_json():
+    settings = ExperimentSettings(domain="dinner-random", runs=7, n_query=(0, 3), seed=9, truth_sampler="authors",
+                                  demo_mode="uniform", noise=0.1)
+    assert ExperimentSettings.from_json(settings.to_json()) == settings
+
+
+def test_fixed_truth_domains_resolve_to_the_fixed_sampler():
+    assert resolve_truth_sampler("dinner-task1", None) == "fixed"
+    assert resolve_truth_sampler("synthetic", None) == "prior"
+    assert resolve_truth_sampler("dinner-random", "authors") == "authors"
+    with pytest.raises(ValueError, match="ground truth is fixed"):
+        resolve_truth_sampler("dinner-task1", "prior")
