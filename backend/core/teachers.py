@@ -1,8 +1,9 @@
 """Simulated teachers and ground truths for experiments and scripted sessions.
 
 A teacher knows a ground-truth formula (a clause-set mask). It demonstrates by following an
-optimal policy for that formula with random tie-breaking (or, optionally, by drawing uniformly
-from all satisfying executions) and assesses an execution by checking the formula, flipping its
+optimal policy for that formula with random tie-breaking ("optimal"), by drawing uniformly from
+all satisfying executions ("uniform"), or by an optimal policy with fixed tie-breaking that
+repeats the same demonstration ("fixed": stop as soon as possible, lowest index first); it assesses an execution by checking the formula, flipping its
 verdict with probability ``noise`` (the paper assumed a perfect teacher; people are not).
 """
 
@@ -18,7 +19,7 @@ from .hypotheses import HypothesisSpace
 from .puns import backward_induction
 from .queries import Execution, rollout
 
-DEMO_MODES = ("optimal", "uniform")
+DEMO_MODES = ("optimal", "uniform", "fixed")
 
 
 def satisfying_nodes(domain: Domain, truth_mask: int) -> np.ndarray:
@@ -85,7 +86,8 @@ class SimulatedTeacher:
             node = int(rng.choice(np.flatnonzero(good)))
             events = graph.events[node]
         else:
-            policy = backward_induction(graph, np.where(good, 1.0, -1.0), rng=rng, prefer_short=False)
+            tie_rng = rng if self.demo_mode == "optimal" else None
+            policy = backward_induction(graph, np.where(good, 1.0, -1.0), rng=tie_rng, prefer_short=False)
             events = policy.events_from(0)
         return rollout(self.domain, events, rng)
 

@@ -81,3 +81,15 @@ def test_bad_configs_are_named():
         SessionConfig(n_queries=-1)
     with pytest.raises(ValueError, match="malformed session JSON"):
         SessionState.from_json('{"schema": 1}')
+
+
+def test_teacher_demonstration_modes():
+    rng = np.random.default_rng(0)
+    fixed = SimulatedTeacher(DINNER, TASK1, demo_mode="fixed")
+    demos = {fixed.demonstrate(rng).events for _ in range(5)}
+    assert len(demos) == 1  # the same demonstration every time
+    varied = SimulatedTeacher(DINNER, TASK1, demo_mode="optimal")
+    assert len({varied.demonstrate(rng).events for _ in range(20)}) > 5
+    for mode in ("optimal", "uniform", "fixed"):
+        teacher = SimulatedTeacher(DINNER, TASK1, demo_mode=mode)
+        assert teacher.assess(teacher.demonstrate(rng).trace, rng)
