@@ -37,7 +37,8 @@ def _save(fig: plt.Figure, stem: Path) -> list[Path]:
 
 def _title(settings: ExperimentSettings) -> str:
     return (f"{settings.domain}, prior {settings.prior}, truth {settings.truth_sampler}, "
-            f"{settings.runs} runs, noise {settings.noise:g}")
+            f"{settings.runs} runs, noise {settings.noise:g}"
+            + ("" if settings.demo_mode == "optimal" else f", {settings.demo_mode} demonstrations"))
 
 
 def plot_by_n_query(summary: Sequence[SummaryRow], settings: ExperimentSettings, statistic: str, stem: Path) -> list[Path]:
