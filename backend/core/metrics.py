@@ -14,6 +14,8 @@ from .clauses import ClauseSpace, popcount
 from .hypotheses import HypothesisSpace
 
 _EXPANDED: "weakref.WeakKeyDictionary[HypothesisSpace, np.ndarray]" = weakref.WeakKeyDictionary()
+_SIMILARITIES: "weakref.WeakKeyDictionary[HypothesisSpace, dict[int, np.ndarray]]" = weakref.WeakKeyDictionary()
+_MAX_TRUTHS_PER_SPACE = 8
 
 
 def similarity(space: ClauseSpace, mask_a: int, mask_b: int) -> float:
@@ -48,7 +50,19 @@ def expanded_masks(hypotheses: HypothesisSpace) -> np.ndarray:
 
 
 def similarities(hypotheses: HypothesisSpace, truth_mask: int) -> np.ndarray:
-    """Similarity of every hypothesis to a ground-truth clause set."""
+    """Similarity of every hypothesis to a ground-truth clause set (cached for recent truths)."""
+    per_space = _SIMILARITIES.setdefault(hypotheses, {})
+    cached = per_space.get(truth_mask)
+    if cached is None:
+        cached = _similarities(hypotheses, truth_mask)
+        cached.flags.writeable = False
+        if len(per_space) >= _MAX_TRUTHS_PER_SPACE:
+            per_space.pop(next(iter(per_space)))
+        per_space[truth_mask] = cached
+    return cached
+
+
+def _similarities(hypotheses: HypothesisSpace, truth_mask: int) -> np.ndarray:
     expanded = expanded_masks(hypotheses)
     truth = np.uint64(hypotheses.domain.clause_space.expanded_mask(truth_mask))
     inter = popcount(expanded & truth)
