@@ -1,0 +1,123 @@
+"""Shared fixtures for browser tests: Debian's Chromium driven by Playwright, never downloaded."""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
+from pathlib import Path
+
+import pytest
+
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+]
+VIEWPORT = {"width": 640, "height": 400}
+TIMEOUT_MS = 60_000  # software WebGL renders a few frames per second
+
+
+@contextmanager
+def launch_chromium(viewport: dict[str, int] = VIEWPORT) -> Iterator[object]:
+    """A Playwright BrowserContext on /usr/bin/chromium with a fresh user-data dir."""
+    from playwright.sync_api import sync_playwright
+
+    with tempfile.TemporaryDirectory(prefix="chromium-profile-") as profile, sync_playwright() as pw:
+        context = pw.chromium.launch_persistent_context(
+            profile,
+            executable_path=str(CHROMIUM),
+            args=CHROMIUM_ARGS,
+            headless=True,
+            viewport=viewport,
+        )
+        context.set_default_timeout(TIMEOUT_MS)
+        try:
+            yield context
+        finally:
+            context.close()
+
+
+@pytest.fixture(scope="session")
+def chromium_browser() -> Iterator[object]:
+    """Session-wide Chromium context; skipped without /usr/bin/chromium unless CI=true (then it fails)."""
+    if not CHROMIUM.exists():
+        message = f"{CHROMIUM} not found: install Debian's chromium package (apt-get install -y chromium)"
+        if os.environ.get("CI", "").lower() == "true":
+            pytest.fail(message)
+        pytest.skip(message)
+    with launch_chromium() as context:
+        yield context
+
+
+@pytest.fixture
+def browser_page(chromium_browser: object) -> Iterator[object]:
+    """A fresh page in the shared Chromium context, closed after the test."""
+    page = chromium_browser.new_page()  # type: ignore[attr-defined]
+    try:
+        yield page
+    finally:
+        page.close()
+
+
+class LiveServer:
+    """The study app served by uvicorn in a thread of the test process, so tests can look at its robot."""
+
+    def __init__(self, root: Path, **settings: object) -> None:
+        import threading
+
+        import uvicorn
+
+        from tableteach.config import Settings
+        from tableteach.db.migrate import upgrade_head
+        from tableteach.web.app import create_app
+        from tests.web.conftest import EXPERIMENTER_TOKEN, free_port
+
+        self.settings = Settings(database_url=f"sqlite:///{root / 'study.db'}", experimenter_token=EXPERIMENTER_TOKEN,
+                                 data_dir=root / "data", port=free_port(), **settings)
+        upgrade_head(self.settings.database_url)
+        self.app = create_app(self.settings)
+        self.ctx = self.app.state.context
+        config = uvicorn.Config(self.app, host="127.0.0.1", port=self.settings.port, log_level="warning",
+                                timeout_graceful_shutdown=2)
+        self.server = uvicorn.Server(config)
+        self.thread = threading.Thread(target=self.server.run, name="live-server", daemon=True)
+
+    @property
+    def url(self) -> str:
+        """Base URL."""
+        return f"http://127.0.0.1:{self.settings.port}"
+
+    def start(self) -> "LiveServer":
+        """Serve and wait until it listens."""
+        import time
+
+        self.thread.start()
+        deadline = time.monotonic() + 30
+        while not self.server.started:
+            if time.monotonic() > deadline or not self.thread.is_alive():
+                raise RuntimeError("the live server did not start within 30 s")
+            time.sleep(0.05)
+        return self
+
+    def stop(self) -> None:
+        """Ask uvicorn to exit (the app's lifespan stops the robot's viser servers) and wait."""
+        self.server.should_exit = True
+        self.thread.join(timeout=15)
+
+
+@pytest.fixture
+def mujoco_server(tmp_path: Path) -> Iterator[LiveServer]:
+    """The app with the MuJoCo robot replaying motions 8x faster than real time, on a temp database."""
+    server = LiveServer(tmp_path, robot="mujoco", robot_speed=8.0).start()
+    try:
+        yield server
+    finally:
+        server.stop()

@@ -1,0 +1,102 @@
+"""The viser view: one server per participant on 127.0.0.1, clickable objects, pose pushes, playback."""
+
+import socket
+import threading
+import time
+
+import numpy as np
+import pytest
+
+from tableteach.sim import OBJECTS
+from tableteach.sim.physics import MujocoWorld
+from tableteach.sim.playback import play
+from tableteach.sim.view import SceneView, capsule_mesh
+
+
+@pytest.fixture(scope="module")
+def world():
+    w = MujocoWorld(seed=0)
+    w.place("bowl")
+    return w
+
+
+def _port_is_free(port: int) -> bool:
+    with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as s:
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+        return True
+
+
+def test_server_binds_localhost_and_releases_port_and_threads(world):
+    threads_before = set(threading.enumerate())
+    view = SceneView(world.model)
+    port = view.port
+    assert port > 0 and not _port_is_free(port)
+    assert view.server.get_host() == "127.0.0.1"
+    view.close()
+    deadline = time.monotonic() + 5
+    while time.monotonic() < deadline and (set(threading.enumerate()) - threads_before):
+        time.sleep(0.05)
+    assert set(threading.enumerate()) - threads_before == set()
+    assert _port_is_free(port)
+
+
+def test_two_views_get_different_ports(world):
+    first, second = SceneView(world.model), SceneView(world.model)
+    try:
+        assert first.port != second.port
+    finally:
+        first.close()
+        second.close()
+
+
+@pytest.fixture
+def view(world):
+    v = SceneView(world.model, on_click=lambda name: None)
+    yield v
+    v.close()
+
+
+def test_objects_start_clickable_and_can_be_disabled(view):
+    assert view.clickable == frozenset(OBJECTS)
+    view.set_clickable("bowl", False)
+    assert view.clickable == frozenset(OBJECTS) - {"bowl"}
+    with pytest.raises(ValueError, match="unknown object 'spoon'"):
+        view.set_clickable("spoon", True)
+
+
+def test_only_changed_bodies_are_pushed(view, world):
+    rec = world.recording
+    moving = view.set_poses(rec.bodies, rec.poses[len(rec) // 2])
+    assert 0 < moving <= len(rec.bodies)
+    assert view.set_poses(rec.bodies, rec.poses[len(rec) // 2]) == 0
+
+
+def test_playback_follows_recorded_time_and_stops_on_request(view, world):
+    rec = world.recording
+    started = time.perf_counter()
+    assert play(rec, view, speed=5.0) >= 0.8 * len(rec)
+    elapsed = time.perf_counter() - started
+    assert rec.duration / 5 * 0.95 <= elapsed < rec.duration / 5 + 0.5
+    stop = threading.Event()
+    stop.set()
+    assert play(rec, view, stop=stop) == 0
+    np.testing.assert_allclose(view._last["bowl"], rec.poses[-1, rec.bodies.index("bowl")], atol=1e-4)
+
+
+def test_late_playback_skips_frames_instead_of_slowing_down(view, world):
+    rec = world.recording
+    started = time.perf_counter()
+    shown = play(rec, view, speed=1000.0)  # far faster than poses can be pushed
+    assert shown < len(rec) / 2
+    assert time.perf_counter() - started < 0.5
+    np.testing.assert_allclose(view._last["hand"], rec.poses[-1, rec.bodies.index("hand")], atol=1e-4)
+
+
+def test_capsule_mesh_is_closed_and_sized():
+    vertices, faces = capsule_mesh(0.04, 0.2)
+    assert np.isclose(vertices[:, 2].max(), 0.24) and np.isclose(vertices[:, 2].min(), -0.24)
+    assert np.isclose(np.hypot(vertices[:, 0], vertices[:, 1]).max(), 0.04)
+    assert faces.max() < len(vertices)
