@@ -4,16 +4,18 @@ The participant places objects one at a time during a demonstration (each placem
 labels); the robot carries out a query or test execution and reports its trace when it has finished.
 The server records the labels and traces the robot reports, never ones it recomputes itself. Tables
 are keyed by a string the server chooses (one per participant and task). The MuJoCo robot
-(tableteach.sim) implements the same protocol and is selected by Settings.robot.
+(tableteach.sim.robot) implements the same protocol plus ViewingRobot (a 3D view per table) and is
+selected by Settings.robot = "mujoco"; make_robot imports it only then, so the server runs without mujoco.
 """
 
 from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol
+from pathlib import Path
+from typing import Protocol, runtime_checkable
 
 from .core.domain import Domain, get_domain
 
@@ -54,6 +56,36 @@ class Robot(Protocol):
 
     def release(self, key: str) -> None:
         """Forget the table (the participant has moved on)."""
+        ...
+
+    def save_recording(self, key: str, name: str) -> None:
+        """Keep the table's motion since its last reset as `name` (participant-<id>/task-<i>/<kind>-<j>), if it records any."""
+        ...
+
+    def close(self, key: str) -> None:
+        """The participant is done with this table: free it and anything shown of it."""
+        ...
+
+
+@dataclass(frozen=True)
+class RobotActivity:
+    """What a table's robot is doing right now, for the participant page's status line."""
+
+    moving: bool
+    caption: str  # e.g. "The robot is placing the bowl (2 of 4)"; empty when idle
+    watchers: int  # browsers showing the table's 3D view
+
+
+@runtime_checkable
+class ViewingRobot(Protocol):
+    """A robot that can show a table in the browser (the MuJoCo one): one viser server per table."""
+
+    def open_view(self, key: str, on_click: Callable[[str], None] | None) -> int:
+        """Start the table's view if needed and return its local port; clicks on waiting objects call on_click."""
+        ...
+
+    def activity(self, key: str) -> RobotActivity | None:
+        """What the robot at this table is doing, or None if the robot has no such table."""
         ...
 
 
@@ -120,9 +152,21 @@ class TraceRobot:
         with self._lock:
             self._tables.pop(key, None)
 
+    def save_recording(self, key: str, name: str) -> None:
+        """Nothing to keep: the trace robot does not move."""
 
-def make_robot(name: str, *, seconds_per_object: float = 0.0) -> Robot:
-    """The robot implementation a Settings.robot value names."""
+    def close(self, key: str) -> None:
+        """Forget the table."""
+        self.release(key)
+
+
+def make_robot(name: str, *, seconds_per_object: float = 0.0, speed: float = 1.0, data_dir: Path | str = "var/data",
+               idle_seconds: float = 600.0) -> Robot:
+    """The robot implementation a Settings.robot value names (the MuJoCo one is imported only when chosen)."""
     if name == "trace":
         return TraceRobot("dinner", seconds_per_object)
-    raise ValueError(f"unknown robot {name!r}; expected 'trace'")
+    if name == "mujoco":
+        from .sim.robot import MujocoRobot  # imports mujoco and viser
+
+        return MujocoRobot(speed=speed, data_dir=Path(data_dir), idle_seconds=idle_seconds)
+    raise ValueError(f"unknown robot {name!r}; expected 'trace' or 'mujoco'")

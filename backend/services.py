@@ -12,6 +12,8 @@ import hashlib
 import json
 import logging
 import secrets
+import threading
+import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from datetime import datetime, timedelta, timezone
@@ -27,7 +29,8 @@ from .db import repository as repo
 from .db.engine import Database
 from .db.tables import EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from .errors import Conflict, InvalidInput, NotAuthenticated, NotFound
-from .robot import Robot, make_robot
+from .robot import Robot, ViewingRobot, make_robot
+from .sim.recordings import RecordingId
 
 log = logging.getLogger(__name__)
 
@@ -76,18 +79,49 @@ def app_version() -> str:
         return "unknown"
 
 
+TAB_LEASE_SECONDS = 15.0
+
+
+class TabLeases:
+    """Which browser tab holds each participant's page; in the process, like the robot's executions."""
+
+    def __init__(self, seconds: float = TAB_LEASE_SECONDS) -> None:
+        self.seconds = seconds
+        self._holders: dict[int, tuple[str, float]] = {}
+        self._lock = threading.Lock()
+
+    def claim(self, participant_id: int, tab_id: str, *, takeover: bool = False) -> bool:
+        """Hold or renew the lease; False while another tab's lease is still fresh (unless takeover)."""
+        now = time.monotonic()
+        with self._lock:
+            holder = self._holders.get(participant_id)
+            if holder is not None and holder[0] != tab_id and holder[1] > now and not takeover:
+                return False
+            self._holders[participant_id] = (tab_id, now + self.seconds)
+            return True
+
+    def release(self, participant_id: int, tab_id: str) -> None:
+        """Give the lease up (the tab is closing or reloading) if this tab holds it."""
+        with self._lock:
+            if self._holders.get(participant_id, ("",))[0] == tab_id:
+                del self._holders[participant_id]
+
+
 @dataclass
 class Context:
-    """What every action needs: the database, the robot and the settings."""
+    """What every action needs: the database, the robot and the settings (plus the page's tab leases)."""
 
     db: Database
     robot: Robot
     settings: Settings
+    tabs: TabLeases = field(default_factory=TabLeases)
 
     @staticmethod
     def from_settings(settings: Settings) -> "Context":
         """Open the database and build the robot the settings name."""
-        robot = make_robot(settings.robot, seconds_per_object=settings.robot_seconds_per_object)
+        robot = make_robot(settings.robot, seconds_per_object=settings.robot_seconds_per_object,
+                           speed=settings.robot_speed, data_dir=settings.data_dir,
+                           idle_seconds=settings.viewer_idle_minutes * 60)
         return Context(Database(settings.database_url), robot, settings)
 
 
@@ -344,6 +378,16 @@ def _robot_key(participant: ParticipantRow, task_index: int) -> str:
     return f"{participant.id}/{task_index}"
 
 
+def _save_recording(ctx: Context, participant: ParticipantRow, task_index: int, kind: str, index: int) -> None:
+    """Ask the robot to keep this step's motion; a failure is logged, never shown to the participant."""
+    try:
+        ctx.robot.save_recording(_robot_key(participant, task_index),
+                                 RecordingId(participant.id, task_index, kind, index).name)
+    except Exception:
+        log.exception("could not save the recording of participant %s task %s %s %s", participant.id, task_index,
+                      kind, index)
+
+
 def _session_config(study: StudyRow, participant: ParticipantRow, task_index: int) -> core.SessionConfig:
     return core.SessionConfig(
         task="dinner", prior=study.prior, protocol=participant.condition,
@@ -376,6 +420,7 @@ def _sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskS
         return False
     trace = [sorted(labels) for labels in progress.trace]
     ts.execution = {**execution, "status": "finished", "trace": trace, "finished_at": utcnow().isoformat()}
+    _save_recording(ctx, participant, ts.task_index, execution["kind"], execution["index"])
     repo.append_event(
         s, participant=participant, kind="execution_finished", app_version=app_version(),
         task_index=ts.task_index, step_kind=execution["kind"], step_index=execution["index"],
@@ -409,7 +454,7 @@ def _state(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed: bo
         ts = _current_task(s, participant)
         task = study.tasks[participant.task_index]
         out["task"] = {"index": participant.task_index, "total": len(study.tasks), "name": task["name"],
-                       "instructions": task["instructions"]}
+                       "instructions": task["instructions"], "key": task["key"]}
         if ts is not None:
             _, step = _step_of(ts.state_json)
             out["step"] = {"kind": step.kind, "index": step.index, "total": step.total}
@@ -660,6 +705,8 @@ def finish_demonstration(ctx: Context, token: str, *, expect: Expect, key: str |
         new_state = core.observe(state, step.kind, trace)
         a.log("demonstration", {"placed": list(ts.demo_placed), "trace": trace},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+        if ts.demo_placed:
+            _save_recording(a.ctx, a.participant, ts.task_index, step.kind, step.index)
         ts.demo_placed, ts.demo_trace = [], []
         a.ctx.robot.release(_robot_key(a.participant, ts.task_index))
         _advance(a, ts, new_state)
@@ -719,6 +766,7 @@ def _advance(a: _Action, ts: TaskSessionRow, new_state: core.SessionState) -> No
     if new_state.phase != "done":
         return
     a.log("task_finished", {}, task_index=ts.task_index)
+    a.ctx.robot.close(_robot_key(a.participant, ts.task_index))  # the next task has its own table (and view)
     if ts.task_index + 1 < len(a.study.tasks):
         _begin_task(a, ts.task_index + 1)
     elif a.study.questionnaire:
@@ -763,6 +811,85 @@ def answer_questionnaire(ctx: Context, token: str, *, answers: dict[str, Any], k
         _complete(a)
 
     return _act(ctx, token, "questionnaire", {"answers": answers}, key, run)
+
+
+# ====================================================================== participant page: 3D view and tab
+
+
+def open_viewer(ctx: Context, token: str) -> int | None:
+    """The local port of the participant's 3D view for the current step, or None (no task, or a robot without view).
+
+    The view is started on first use and shows the stored state of the step (the robot forgets its
+    tables on a restart); during a practice trial or demonstration a click on a waiting object is a
+    placement through place_object, the same code path as POST /me/placements.
+    """
+    robot = ctx.robot
+    if not isinstance(robot, ViewingRobot):
+        with ctx.db.read() as s:
+            _participant(s, token)  # an unknown token is refused whatever the robot
+        return None
+    # A write transaction (never committed) so that no placement is stored while the table is synced.
+    with ctx.db.write() as s:
+        participant, _study = _participant(s, token)
+        ts = _current_task(s, participant)
+        if ts is None:
+            return None
+        _, step = _step_of(ts.state_json)
+        key = _robot_key(participant, ts.task_index)
+        on_click: Callable[[str], None] | None = None
+        if step.kind in ("practice", "demonstration"):
+            if ts.demo_trace and robot.placed(key) != tuple(ts.demo_placed):
+                robot.reset(key)
+                for obj in ts.demo_placed:
+                    robot.place(key, obj)
+            expect = Expect(ts.task_index, step.kind, step.index)
+
+            def on_click(obj: str) -> None:
+                _place_clicked(ctx, token, obj, expect)
+        else:
+            ex = ts.execution
+            if (ex is not None and ex["status"] == "finished" and (ex["kind"], ex["index"]) == (step.kind, step.index)
+                    and robot.progress(key) is None):
+                robot.execute(key, ex["events"])  # show the finished execution again after a restart
+        return robot.open_view(key, on_click)
+
+
+def _place_clicked(ctx: Context, token: str, obj: str, expect: Expect) -> None:
+    """A click in the 3D view; one that came too late for its step is dropped."""
+    try:
+        place_object(ctx, token, obj=obj, expect=expect)
+    except (Conflict, InvalidInput) as exc:
+        log.info("click on %s not placed: %s", obj, exc.message)
+
+
+def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
+    """What the participant's robot is doing now: moving, a caption, and how many views are connected."""
+    with ctx.db.read() as s:
+        participant, _study = _participant(s, token)
+        ts = _current_task(s, participant)
+        key = None if ts is None else _robot_key(participant, ts.task_index)
+    robot = ctx.robot
+    viewing = isinstance(robot, ViewingRobot)
+    activity = robot.activity(key) if viewing and key is not None else None
+    return {"view": viewing, "moving": bool(activity and activity.moving),
+            "caption": activity.caption if activity else "", "watchers": activity.watchers if activity else 0}
+
+
+def claim_tab(ctx: Context, token: str, tab_id: str, *, takeover: bool = False) -> dict[str, Any]:
+    """Hold (or renew) the one-tab lease of the participant's page; held is False while another tab holds it."""
+    with ctx.db.read() as s:
+        participant, _study = _participant(s, token)
+        pid = participant.id
+    held = ctx.tabs.claim(pid, tab_id, takeover=takeover)
+    return {"held": held, "lease_seconds": ctx.tabs.seconds}
+
+
+def release_tab(ctx: Context, token: str, tab_id: str) -> None:
+    """The tab is going away (reload or close): let the next one take over at once."""
+    with ctx.db.read() as s:
+        participant, _study = _participant(s, token)
+        pid = participant.id
+    ctx.tabs.release(pid, tab_id)
 
 
 # ====================================================================== experimenter views

@@ -10,6 +10,7 @@ from fastapi import FastAPI
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
+from . import analysis, dashboard, viewer
 from .auth import experimenter_checker
 
 DESCRIPTION = """Study server for teaching a robot to set a dinner table from demonstrations and verdicts.
@@ -27,6 +28,9 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
         yield
+        shutdown = getattr(ctx.robot, "shutdown", None)  # the MuJoCo robot stops its viser servers
+        if shutdown is not None:
+            shutdown()
         ctx.db.dispose()
 
     app = FastAPI(title="TableTeach study server", version=app_version(), description=DESCRIPTION, lifespan=lifespan)
@@ -35,6 +39,6 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.experimenter = checker
     app.state.dev_token = dev_token
     errors.install(app)
-    for module in (participants, studies, exports, pages):
+    for module in (participants, studies, exports, analysis, dashboard, viewer, pages):
         app.include_router(module.router)
     return app

@@ -11,13 +11,17 @@ from ..config import Settings
 
 def _settings(args: argparse.Namespace) -> Settings:
     overrides: dict[str, Any] = {}
-    for name in ("host", "port", "database_url"):
+    for name in ("host", "port", "database_url", "robot", "data_dir"):
         value = getattr(args, name, None)
         if value is not None:
             overrides[name] = value
     if getattr(args, "dev", False) or getattr(args, "demo", False):
         overrides["dev_mode"] = True
-    return Settings(**overrides)
+    settings = Settings(**overrides)
+    if getattr(args, "demo", False) and "robot" not in settings.model_fields_set:
+        # The demo is there to be looked at: show the arm unless a robot was chosen explicitly.
+        settings = settings.model_copy(update={"robot": "mujoco"})
+    return settings
 
 
 def cmd_serve(args: argparse.Namespace) -> None:
@@ -32,7 +36,8 @@ def cmd_serve(args: argparse.Namespace) -> None:
     app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
     upgrade_head(settings.database_url)
     base = settings.public_url or f"http://{settings.host}:{settings.port}"
-    lines = [f"TableTeach serving on http://{settings.host}:{settings.port} (database {_safe_url(settings.database_url)})",
+    lines = [f"TableTeach serving on http://{settings.host}:{settings.port} (database {_safe_url(settings.database_url)}, "
+             f"robot {settings.robot})",
              f"dashboard: {base}/dashboard   API docs: {base}/docs"]
     if args.demo:
         study = services.seed_demo_study(app.state.context)
@@ -108,7 +113,11 @@ def register(sub: argparse._SubParsersAction) -> None:
     serve.add_argument("--host", help="interface to listen on (default 127.0.0.1; TABLETEACH_HOST)")
     serve.add_argument("--port", type=int, help="port (default 8000; TABLETEACH_PORT)")
     serve.add_argument("--database-url", help="SQLAlchemy URL (default sqlite:///var/tableteach.db)")
-    serve.add_argument("--demo", action="store_true", help="seed the demo study (implies --dev)")
+    serve.add_argument("--demo", action="store_true",
+                       help="seed the demo study (implies --dev; the MuJoCo robot unless --robot or TABLETEACH_ROBOT)")
+    serve.add_argument("--robot", choices=["trace", "mujoco"],
+                       help="robot: trace (no physics) or mujoco (simulated arm shown in the page); TABLETEACH_ROBOT")
+    serve.add_argument("--data-dir", help="folder for robot recordings (default var/data; TABLETEACH_DATA_DIR)")
     serve.add_argument("--dev", action="store_true", help="dev mode: a generated experimenter token if none is set")
     serve.add_argument("--log-level", default="warning", choices=["critical", "error", "warning", "info", "debug"])
     serve.set_defaults(run=cmd_serve)

@@ -1,21 +1,38 @@
-"""Pages outside the API: the study link (/study/{id}/join), the participant page and dashboard placeholders."""
+"""Pages outside the API: the study link (/study/{id}/join), the participant page and its static files."""
 
 from __future__ import annotations
 
-import html
+from pathlib import Path
 from typing import Annotated
 
 from fastapi import APIRouter, Query
-from fastapi.responses import HTMLResponse, RedirectResponse
+from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
 
 from .. import services
-from ..errors import NotAuthenticated
+from ..errors import NotAuthenticated, NotFound
 from .deps import ContextDep
 from .schemas import error_responses
 
 router = APIRouter(tags=["pages"], responses=error_responses(422))
 ExternalId = Annotated[str | None, Query(max_length=128, pattern=r"^[A-Za-z0-9_.:\-]*$")]
 
+FRONTEND = Path(__file__).resolve().parents[2] / "frontend"
+# Only these files are served, so nothing else in frontend/ (or above it) can be reached by name.
+ASSETS = {
+    "participant.js": "text/javascript; charset=utf-8",
+    "participant-views.js": "text/javascript; charset=utf-8",
+    "api.js": "text/javascript; charset=utf-8",
+    "style.css": "text/css; charset=utf-8",
+    "goal-task1.png": "image/png",
+    "goal-task2.png": "image/png",
+}
+# The page carries the participant's token in its address: never leak it in a Referer header.
+PAGE_HEADERS = {
+    "Referrer-Policy": "no-referrer",
+    "Cache-Control": "no-store",
+    "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; frame-src 'self'; object-src 'none'; "
+                               "base-uri 'none'; frame-ancestors 'none'",
+}
 PAGE = """<!doctype html><html lang="en"><head><meta charset="utf-8"><title>{title}</title></head>
 <body><main><h1>{title}</h1>{body}</main></body></html>"""
 
@@ -30,26 +47,26 @@ def join_link(study_id: str, ctx: ContextDep, PROLIFIC_PID: ExternalId = None, S
     return RedirectResponse(f"/p/{state['token']}", status_code=303)
 
 
-@router.get("/p/{token}", response_class=HTMLResponse,
-            responses={404: {"description": "unknown link", "content": {"text/html": {}}}})
-def participant_page(token: str, ctx: ContextDep) -> HTMLResponse:
-    """The participant's page (placeholder until the frontend lands: it names the API to use)."""
+@router.get("/p/{token}", response_class=FileResponse,
+            responses={200: {"content": {"text/html": {}}},
+                       404: {"description": "unknown link", "content": {"text/html": {}}}})
+def participant_page(token: str, ctx: ContextDep) -> Response:
+    """The participant's page (frontend/participant.html); it reads the token from its own address."""
     try:
-        state = services.participant_state(ctx, token)
+        services.participant_state(ctx, token)
     except NotAuthenticated:
         body = "<p>No participant has this link; check that it was copied completely.</p>"
         return HTMLResponse(PAGE.format(title="Link not found", body=body), status_code=404)
-    body = (f"<p>Your session is at the <b>{html.escape(state['stage'])}</b> stage.</p>"
-            "<p>The study page is coming soon. Scripted clients: <code>GET /api/v1/me</code> with "
-            "<code>Authorization: Bearer &lt;the token in this page's address&gt;</code>.</p>")
-    return HTMLResponse(PAGE.format(title="TableTeach study", body=body), headers={"Referrer-Policy": "no-referrer"})
+    return FileResponse(FRONTEND / "participant.html", media_type="text/html; charset=utf-8", headers=PAGE_HEADERS)
 
 
-@router.get("/dashboard", response_class=HTMLResponse)
-def dashboard() -> HTMLResponse:
-    """The experimenter dashboard (placeholder; the API under /api/v1/studies works now)."""
-    body = "<p>The dashboard is coming soon. Meanwhile see <a href='/docs'>/docs</a> (experimenter endpoints).</p>"
-    return HTMLResponse(PAGE.format(title="TableTeach dashboard", body=body))
+@router.get("/participant/assets/{name}", response_class=FileResponse,
+            responses={404: {"description": "no such file"}})
+def participant_asset(name: str) -> FileResponse:
+    """A script, style sheet or picture of the participant page (only the files listed in ASSETS)."""
+    if name not in ASSETS:
+        raise NotFound(f"no participant asset named {name!r}; expected one of {', '.join(sorted(ASSETS))}")
+    return FileResponse(FRONTEND / name, media_type=ASSETS[name], headers={"Cache-Control": "no-cache"})
 
 
 @router.get("/healthz")

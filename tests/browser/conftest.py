@@ -121,3 +121,13 @@ def mujoco_server(tmp_path: Path) -> Iterator[LiveServer]:
         yield server
     finally:
         server.stop()
+
+
+@pytest.fixture
+def slow_mujoco_server(tmp_path: Path) -> Iterator[LiveServer]:
+    """The app with the MuJoCo robot at 2x real time: long enough to act while the robot still moves."""
+    server = LiveServer(tmp_path, robot="mujoco", robot_speed=2.0).start()
+    try:
+        yield server
+    finally:
+        server.stop()

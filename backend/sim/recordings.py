@@ -1,0 +1,100 @@
+"""Where the study server keeps the robot's recorded motions: one .npz (poses) plus one .json (what
+happened) per step, under <data_dir>/recordings/participant-<id>/task-<i>/<kind>-<j>.*; numpy only."""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass
+from pathlib import Path
+
+from .recording import Recording
+
+FOLDER = "recordings"
+STEP_KINDS = ("practice", "demonstration", "query", "test")
+_NAME = re.compile(r"^participant-(\d+)/task-(\d+)/(practice|demonstration|query|test)-(\d+)$")
+
+
+@dataclass(frozen=True, order=True)
+class RecordingId:
+    """Which step of which participant a recording shows (indices count from 0, as in the API)."""
+
+    participant_id: int
+    task_index: int
+    step_kind: str
+    step_index: int
+
+    def __post_init__(self) -> None:
+        if self.step_kind not in STEP_KINDS:
+            raise ValueError(f"step_kind is {self.step_kind!r}: expected one of {', '.join(STEP_KINDS)}")
+        if min(self.participant_id, self.task_index, self.step_index) < 0:
+            raise ValueError(f"{self} has a negative id or index: expected whole numbers >= 0")
+
+    @property
+    def name(self) -> str:
+        """The relative path without suffix, e.g. participant-3/task-0/query-1."""
+        return f"participant-{self.participant_id}/task-{self.task_index}/{self.step_kind}-{self.step_index}"
+
+    @classmethod
+    def parse(cls, name: str) -> RecordingId:
+        """The id a name() string stands for."""
+        match = _NAME.match(name)
+        if match is None:
+            raise ValueError(f"recording name {name!r}: expected participant-<id>/task-<i>/<kind>-<j>")
+        pid, task, kind, index = match.groups()
+        return cls(int(pid), int(task), kind, int(index))
+
+
+@dataclass(frozen=True)
+class SavedRecording:
+    """A recorded step: body poses over time, the objects the robot moved and the labels it reported."""
+
+    id: RecordingId
+    recording: Recording
+    events: tuple[str, ...]  # objects in the order the robot placed them
+    trace: tuple[frozenset[str], ...]  # labels initially and after each action
+    action_ends: tuple[float, ...]  # recording time (s) at which each action ended
+
+
+def _paths(data_dir: Path | str, rid: RecordingId) -> tuple[Path, Path]:
+    base = Path(data_dir) / FOLDER / rid.name
+    return base.with_suffix(".npz"), base.with_suffix(".json")
+
+
+def save_recording(data_dir: Path | str, saved: SavedRecording) -> Path:
+    """Write the step's .npz and .json (replacing an earlier save of the same step); the .npz path."""
+    npz, meta = _paths(data_dir, saved.id)
+    npz.parent.mkdir(parents=True, exist_ok=True)
+    saved.recording.save(npz)
+    meta.write_text(json.dumps({
+        "participant_id": saved.id.participant_id, "task_index": saved.id.task_index,
+        "step_kind": saved.id.step_kind, "step_index": saved.id.step_index,
+        "events": list(saved.events), "trace": [sorted(labels) for labels in saved.trace],
+        "action_ends": list(saved.action_ends), "duration": saved.recording.duration,
+    }, indent=1))
+    return npz
+
+
+def list_recordings(data_dir: Path | str, participant_id: int | None = None) -> list[RecordingId]:
+    """Every saved step (of one participant if given), sorted by participant, task, kind and index."""
+    root = Path(data_dir) / FOLDER
+    pattern = f"participant-{participant_id}/task-*/*.npz" if participant_id is not None else "participant-*/task-*/*.npz"
+    out = []
+    for path in root.glob(pattern):
+        try:
+            out.append(RecordingId.parse(path.relative_to(root).with_suffix("").as_posix()))
+        except ValueError:
+            continue  # a stray file someone put there
+    return sorted(out, key=lambda r: (r.participant_id, r.task_index, STEP_KINDS.index(r.step_kind), r.step_index))
+
+
+def load_recording(data_dir: Path | str, rid: RecordingId) -> SavedRecording:
+    """Read a saved step; FileNotFoundError naming the path if it was never saved."""
+    npz, meta = _paths(data_dir, rid)
+    if not npz.exists() or not meta.exists():
+        raise FileNotFoundError(f"no recording of {rid.name} under {Path(data_dir) / FOLDER}: expected {npz} and {meta}")
+    info = json.loads(meta.read_text())
+    return SavedRecording(
+        rid, Recording.load(npz), tuple(info["events"]), tuple(frozenset(x) for x in info["trace"]),
+        tuple(float(t) for t in info["action_ends"]),
+    )

@@ -1,0 +1,413 @@
+"""The study server's MuJoCo robot (tableteach.robot.Robot and ViewingRobot): per key a MujocoWorld, a
+viser SceneView started when a page asks for it, and a player thread that shows motions in real time.
+
+Physics runs as soon as the server asks (a placement costs about 0.25 s of CPU), so a placement's
+labels come back without waiting for the motion to be shown and no database transaction waits for
+an animation; the view then plays the recorded frames. Executions simulate and show one action at a
+time in the player thread, and their trace grows only once an action has been shown, so a participant
+judges what they saw. Nobody watching: everything fast-forwards. Labels always come from
+MujocoWorld.labels(), MuJoCo's labeling function. See docs/frontend.md.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+import zlib
+from collections import deque
+from collections.abc import Callable, Sequence
+from pathlib import Path
+
+from ..robot import RobotActivity, RobotProgress
+from .physics import MujocoWorld
+from .playback import play
+from .recording import Recording
+from .recordings import RecordingId, SavedRecording, save_recording
+from .view import SceneView
+from .world import check_placeable
+
+log = logging.getLogger(__name__)
+
+Labels = frozenset[str]
+
+
+def _pretty(obj: str) -> str:
+    return obj.replace("_", " ")
+
+
+def table_seed(key: str) -> int:
+    """The start-pose jitter seed of a table: fixed per key, so a restarted server rebuilds the same scene."""
+    return zlib.crc32(key.encode()) % (2**31)
+
+
+class _Table:
+    """One participant's table; `ops` serialises the robot's calls, `lock` guards the world and fields."""
+
+    def __init__(self, key: str) -> None:
+        self.key = key
+        self.seed = table_seed(key)
+        self.world = MujocoWorld(self.seed)
+        self.view: SceneView | None = None
+        self.ops = threading.Lock()
+        self.lock = threading.RLock()
+        self.active = False  # False until reset/place/execute and after release: placed()/progress() say None
+        self.on_click: Callable[[str], None] | None = None
+        self.clicking = False
+        self.pending: deque[tuple[str, Recording]] = deque()  # placements simulated but not yet shown
+        self.execution: tuple[str, ...] | None = None
+        self.shown = 0  # actions of the execution shown so far
+        self.next_segment: Recording | None = None  # the simulated action the player shows next
+        self.action_ends: list[float] = []  # simulated time at which each action since the reset ended
+        self.caption = ""
+        self.player: threading.Thread | None = None
+        self.stop = threading.Event()
+        self.last_used = time.monotonic()
+
+    @property
+    def moving(self) -> bool:
+        return self.player is not None
+
+    @property
+    def watchers(self) -> int:
+        return 0 if self.view is None else self.view.client_count
+
+
+class MujocoRobot:
+    """Tables keyed by the server's string; thread-safe; idle views are stopped after `idle_seconds`."""
+
+    def __init__(self, *, speed: float = 1.0, data_dir: Path | str = "var/data", idle_seconds: float = 600.0) -> None:
+        if speed <= 0:
+            raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.0")
+        self.speed = speed
+        self.data_dir = Path(data_dir)
+        self.idle_seconds = idle_seconds
+        self._tables: dict[str, _Table] = {}
+        self._lock = threading.Lock()
+        self._reaper: threading.Thread | None = None
+        self._closing = threading.Event()
+
+    # -- Robot -------------------------------------------------------------------------------------
+    def reset(self, key: str) -> Labels:
+        """Everything back on Table A; the labels of the cleared table."""
+        table = self._table(key)
+        with table.ops:
+            self._halt(table)
+            with table.lock:
+                self._clear(table)
+                table.active = True
+                labels = table.world.labels()
+            self._refresh(table)
+        return labels
+
+    def place(self, key: str, obj: str) -> Labels:
+        """Simulate placing `obj` now and return the labels; the view shows the motion afterwards."""
+        table = self._table(key)
+        with table.ops:
+            if table.execution is not None:  # as TraceRobot: a placement ends any execution
+                self._halt(table)
+                with table.lock:
+                    table.execution, table.shown = None, 0
+            with table.lock:
+                table.active = True
+                start = len(table.world.recording) - 1
+                labels = table.world.place(obj)  # PlacementError (a ValueError) for an unknown or moved object
+                table.action_ends.append(float(table.world.data.time))
+                if table.watchers > 0:
+                    table.pending.append((f"The robot is placing the {_pretty(obj)}", table.world.recording.since(start)))
+                else:
+                    self._show_still(table)
+            self._start_player(table)
+            self._refresh(table)
+        return labels
+
+    def placed(self, key: str) -> tuple[str, ...] | None:
+        """Objects moved off Table A since the last reset, or None for a table the robot does not hold."""
+        table = self._get(key)
+        if table is None:
+            return None
+        with table.lock:
+            return tuple(table.world.placed) if table.active else None
+
+    def execute(self, key: str, events: Sequence[str]) -> None:
+        """Start an execution from a cleared table; the player thread simulates and shows it action by action."""
+        table = self._table(key)
+        events = tuple(events)
+        moved: list[str] = []
+        for obj in events:  # refuse the whole request before anything moves
+            check_placeable(obj, table.world.objects, tuple(moved))
+            moved.append(obj)
+        with table.ops:
+            self._halt(table)
+            with table.lock:
+                self._clear(table)
+                table.active = True
+                table.on_click = None
+                table.execution = events
+            self._refresh(table)
+            self._start_player(table)
+
+    def progress(self, key: str) -> RobotProgress | None:
+        """The execution's labels for the actions shown so far, and whether all have been shown."""
+        table = self._get(key)
+        if table is None:
+            return None
+        with table.lock:
+            if not table.active or table.execution is None:
+                return None
+            trace = tuple(table.world.trace[: table.shown + 1])
+            return RobotProgress(table.execution, trace, table.shown >= len(table.execution))
+
+    def release(self, key: str) -> None:
+        """Forget the table's contents; its view (if any) stays up showing a cleared table."""
+        table = self._get(key)
+        if table is None:
+            return
+        with table.ops:
+            self._halt(table)
+            with table.lock:
+                self._clear(table)
+                table.active = False
+                table.on_click = None
+            self._refresh(table)
+            if table.view is None:
+                self._drop(key, table)
+
+    def save_recording(self, key: str, name: str) -> None:
+        """Save the motion since the last reset under data_dir (see tableteach.sim.recordings)."""
+        rid = RecordingId.parse(name)
+        table = self._get(key)
+        if table is None:
+            log.warning("no table %s to save %s from", key, name)
+            return
+        with table.lock:
+            saved = SavedRecording(rid, table.world.recording, tuple(table.world.placed), tuple(table.world.trace),
+                                   tuple(table.action_ends))
+        save_recording(self.data_dir, saved)
+
+    def close(self, key: str) -> None:
+        """Stop the table's motion and view and forget it."""
+        with self._lock:
+            table = self._tables.pop(key, None)
+        if table is not None:
+            self._shut(table)
+
+    # -- ViewingRobot --------------------------------------------------------------------------------
+    def open_view(self, key: str, on_click: Callable[[str], None] | None) -> int:
+        """The table's viser port (started on first use); waiting objects report clicks to on_click."""
+        table = self._table(key)
+        with table.ops:
+            if table.view is None:
+                table.view = SceneView(table.world.model, clickable=(), on_click=lambda obj: self._clicked(table, obj))
+                with table.lock:
+                    self._show_still(table)
+                    table.view.set_caption(table.caption)
+            table.on_click = on_click
+            table.last_used = time.monotonic()
+            self._refresh(table)
+            port = table.view.port
+        self._ensure_reaper()
+        return port
+
+    def activity(self, key: str) -> RobotActivity | None:
+        """Whether the robot moves, its caption, and how many browsers watch."""
+        table = self._get(key)
+        if table is None:
+            return None
+        return RobotActivity(table.moving, table.caption if table.moving else "", table.watchers)
+
+    def scene(self, key: str) -> tuple[MujocoWorld, SceneView | None] | None:
+        """The table's world and view, for tests and tools that look (never move anything through these)."""
+        with self._lock:
+            table = self._tables.get(key)  # looking is not using: the idle clock keeps running
+        return None if table is None else (table.world, table.view)
+
+    def shutdown(self) -> None:
+        """Close every table (server shutdown)."""
+        self._closing.set()
+        with self._lock:
+            tables = list(self._tables.values())
+            self._tables.clear()
+        for table in tables:
+            self._shut(table)
+
+    # -- internals -----------------------------------------------------------------------------------
+    def _get(self, key: str) -> _Table | None:
+        with self._lock:
+            table = self._tables.get(key)
+        if table is not None:
+            table.last_used = time.monotonic()
+        return table
+
+    def _table(self, key: str) -> _Table:
+        with self._lock:
+            table = self._tables.get(key)
+            if table is None:
+                table = self._tables[key] = _Table(key)
+        table.last_used = time.monotonic()
+        return table
+
+    def _drop(self, key: str, table: _Table) -> None:
+        with self._lock:
+            if self._tables.get(key) is table:
+                del self._tables[key]
+        table.world.close()
+
+    def _shut(self, table: _Table) -> None:
+        with table.ops:
+            self._halt(table)
+            if table.view is not None:
+                table.view.close()
+                table.view = None
+            table.world.close()
+
+    def _clear(self, table: _Table) -> None:
+        """Reset the world and the table's bookkeeping (caller holds table.lock, player halted)."""
+        table.world.reset(table.seed)
+        table.execution = None
+        table.shown = 0
+        table.pending.clear()
+        table.action_ends = []
+        table.caption = ""
+        self._show_still(table)
+
+    def _show_still(self, table: _Table) -> None:
+        """Show the simulated state as it is now (caller holds table.lock)."""
+        if table.view is not None:
+            table.view.set_poses(table.world.bodies, table.world.body_poses())
+
+    def _halt(self, table: _Table) -> None:
+        """Stop the player thread (caller holds table.ops but not table.lock: the player takes it)."""
+        player = table.player
+        if player is not None:
+            table.stop.set()
+            player.join()
+        table.stop.clear()
+        table.caption = ""
+        if table.view is not None:
+            table.view.set_caption("")
+
+    def _start_player(self, table: _Table) -> None:
+        """Start the player unless it runs (it decides to end under table.lock, so nothing is left unshown)."""
+        with table.lock:
+            if table.player is not None:
+                return
+            if not table.pending and (table.execution is None or table.shown >= len(table.execution)):
+                return
+            table.player = threading.Thread(target=self._play, args=(table,), name=f"robot-{table.key}", daemon=True)
+            table.player.start()
+
+    def _next_motion(self, table: _Table) -> tuple[str, Recording, bool] | None:
+        """Simulate the execution's next action, or take a pending placement (caller holds table.lock)."""
+        ex = table.execution
+        if ex is not None and table.shown < len(ex):
+            world = table.world
+            if len(world.placed) == table.shown:  # not simulated yet
+                start = len(world.recording) - 1
+                world.place(ex[table.shown])
+                table.action_ends.append(float(world.data.time))
+                table.next_segment = world.recording.since(start)
+            caption = f"The robot is placing the {_pretty(ex[table.shown])} ({table.shown + 1} of {len(ex)})"
+            assert table.next_segment is not None
+            return caption, table.next_segment, True
+        if table.pending:
+            caption, segment = table.pending.popleft()
+            return caption, segment, False
+        return None
+
+    def _play(self, table: _Table) -> None:
+        """Player thread: show each motion at wall-clock speed while watched, else jump to its end."""
+        try:
+            while not table.stop.is_set():
+                with table.lock:
+                    motion = self._next_motion(table)
+                    if motion is None:
+                        table.player = None
+                        break
+                    caption, segment, is_action = motion
+                    table.caption = caption
+                view = table.view
+                if view is not None:
+                    view.set_caption(caption)
+                    if view.client_count > 0:
+                        play(segment, view, speed=self.speed, stop=table.stop)
+                if table.stop.is_set():
+                    break
+                with table.lock:
+                    if view is not None:
+                        view.set_poses(segment.bodies, segment.poses[-1])
+                    if is_action:
+                        table.shown += 1
+        except Exception:
+            log.exception("robot %s failed while moving", table.key)
+            with table.lock:  # report what was simulated rather than hang the participant forever
+                if table.execution is not None:
+                    table.execution = table.execution[: len(table.world.placed)]
+                    table.shown = len(table.execution)
+        finally:
+            with table.lock:
+                if table.player is threading.current_thread():
+                    table.player = None
+                table.caption = ""
+            if table.view is not None:
+                table.view.set_caption("")
+            self._refresh(table)
+
+    def _refresh(self, table: _Table) -> None:
+        """Make exactly the objects a participant may click now clickable."""
+        view = table.view
+        if view is None:
+            return
+        with table.lock:
+            idle = not table.pending and not table.clicking and (
+                table.execution is None or table.shown >= len(table.execution))
+            want = set()
+            if table.on_click is not None and table.execution is None and idle and table.player is None:
+                want = {o for o in table.world.objects if o not in table.world.placed}
+        for obj in table.world.objects:
+            view.set_clickable(obj, obj in want)
+
+    def _clicked(self, table: _Table, obj: str) -> None:
+        """A click on a waiting object (viser's thread): hand it to the server's callback, one at a time."""
+        with table.lock:
+            callback = table.on_click
+            if callback is None or table.clicking:
+                return
+            table.clicking = True
+        self._refresh(table)
+        try:
+            callback(obj)
+        except Exception:
+            log.exception("click on %s at table %s failed", obj, table.key)
+        finally:
+            with table.lock:
+                table.clicking = False
+            self._refresh(table)
+
+    def _ensure_reaper(self) -> None:
+        with self._lock:
+            if self._reaper is not None and self._reaper.is_alive():
+                return
+            self._reaper = threading.Thread(target=self._reap, name="robot-view-reaper", daemon=True)
+            self._reaper.start()
+
+    def _reap(self) -> None:
+        """Stop views nobody has watched or used for idle_seconds; end once no view is left."""
+        interval = max(0.05, min(30.0, self.idle_seconds / 4))
+        while not self._closing.wait(interval):
+            now = time.monotonic()
+            with self._lock:
+                tables = [(k, t) for k, t in self._tables.items() if t.view is not None]
+            if not tables:
+                return
+            for key, table in tables:
+                if table.watchers > 0 or table.moving:
+                    table.last_used = now
+                elif now - table.last_used > self.idle_seconds:
+                    log.info("stopping the idle view of table %s", key)
+                    with table.ops:
+                        if table.view is not None:
+                            table.view.close()
+                            table.view = None
+                    if not table.active:
+                        self._drop(key, table)

@@ -1,0 +1,175 @@
+"""The participant page's live links: the same-origin 3D view (viser's client page plus a websocket proxy
+to the participant's own viser server on 127.0.0.1), the robot's activity, and the one-tab lease.
+
+This module and tableteach.sim are the only code that knows viser's ports. The proxy checks the
+participant's token and forwards viser's version subprotocol (Sec-WebSocket-Protocol); without it
+viser closes the connection with 1002 "Version mismatch".
+"""
+
+from __future__ import annotations
+
+import asyncio
+import gzip
+import logging
+from functools import lru_cache
+from typing import Any
+
+import websockets
+from fastapi import APIRouter, Request, WebSocket
+from fastapi.responses import HTMLResponse, Response
+from pydantic import BaseModel, ConfigDict, Field
+from starlette.concurrency import run_in_threadpool
+from starlette.websockets import WebSocketDisconnect
+
+from .. import services
+from ..errors import NotAuthenticated
+from .deps import ContextDep, TokenDep
+from .schemas import error_responses
+
+log = logging.getLogger(__name__)
+router = APIRouter(tags=["participant page"])
+TabId = Field(min_length=8, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
+CLOSE_POLICY = 1008  # websocket close code: the request broke a rule (bad token, no view now)
+
+
+class TabIn(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+    tab_id: str = TabId
+    takeover: bool = False
+
+
+class TabReleaseIn(BaseModel):
+    model_config = ConfigDict(extra="forbid", strict=True)
+    tab_id: str = TabId
+
+
+class TabOut(BaseModel):
+    held: bool = Field(description="true if this tab holds the page; false while another tab's lease is fresh")
+    lease_seconds: float
+
+
+class ViewOut(BaseModel):
+    available: bool = Field(description="false when the robot has no 3D view or the participant is not at a task")
+    url: str | None = Field(description="the viewer page to embed (same origin)")
+
+
+class ActivityOut(BaseModel):
+    view: bool
+    moving: bool
+    caption: str
+    watchers: int
+
+
+def viewer_path(token: str) -> str:
+    """The viewer page of a participant; viser's client connects its websocket to this path without the slash."""
+    return f"/p/{token}/viewer/"
+
+
+@lru_cache(maxsize=1)
+def _client_bytes() -> tuple[bytes, bytes]:
+    from ..sim.viewer_client import client_html
+
+    raw = client_html()
+    return raw, gzip.compress(raw, compresslevel=6)
+
+
+@router.get("/p/{token}/viewer/", response_class=HTMLResponse, include_in_schema=False)
+def viewer_page(token: str, request: Request, ctx: ContextDep) -> Response:
+    """Viser's client page, served from this origin for a known participant."""
+    try:
+        services.participant_state(ctx, token)
+    except NotAuthenticated:
+        return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
+    raw, packed = _client_bytes()
+    headers = {"Referrer-Policy": "no-referrer", "Cache-Control": "private, max-age=3600"}
+    if "gzip" in request.headers.get("accept-encoding", ""):
+        return Response(packed, media_type="text/html; charset=utf-8", headers={**headers, "Content-Encoding": "gzip"})
+    return Response(raw, media_type="text/html; charset=utf-8", headers=headers)
+
+
+@router.websocket("/p/{token}/viewer")
+async def viewer_socket(websocket: WebSocket, token: str) -> None:
+    """Proxy the browser's websocket to the participant's viser server (started on first use)."""
+    ctx = websocket.app.state.context
+    try:
+        port = await run_in_threadpool(services.open_viewer, ctx, token)
+    except NotAuthenticated:
+        await websocket.close(code=CLOSE_POLICY, reason="unknown participant token")
+        return
+    if port is None:
+        await websocket.close(code=CLOSE_POLICY, reason="no 3D view at this stage of the study")
+        return
+    offered = list(websocket.scope.get("subprotocols") or [])
+    try:
+        upstream = await websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=offered or None,  # type: ignore[arg-type]
+                                            max_size=None, compression=None, open_timeout=10)
+    except (OSError, websockets.WebSocketException, asyncio.TimeoutError) as exc:
+        log.warning("viewer of participant page could not reach viser on port %s: %s", port, exc)
+        await websocket.close(code=1011, reason="the 3D view is not available; reload the page")
+        return
+    async with upstream:
+        await websocket.accept(subprotocol=upstream.subprotocol)
+        await _pump(websocket, upstream)
+
+
+async def _pump(browser: WebSocket, upstream: Any) -> None:
+    """Copy messages both ways until either side closes, then close the other."""
+
+    async def down() -> None:
+        async for message in upstream:
+            if isinstance(message, bytes):
+                await browser.send_bytes(message)
+            else:
+                await browser.send_text(message)
+
+    async def up() -> None:
+        while True:
+            message = await browser.receive()
+            if message["type"] == "websocket.disconnect":
+                return
+            data = message.get("bytes")
+            await upstream.send(data if data is not None else message.get("text", ""))
+
+    tasks = [asyncio.create_task(down()), asyncio.create_task(up())]
+    try:
+        done, pending = await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+        for task in pending:
+            task.cancel()
+        for task in done:
+            exc = task.exception()
+            if exc is not None and not isinstance(exc, (WebSocketDisconnect, websockets.ConnectionClosed)):
+                log.warning("viewer proxy stopped: %r", exc)
+    finally:
+        for task in tasks:
+            task.cancel()
+        await upstream.close()
+        try:
+            await browser.close()
+        except (RuntimeError, WebSocketDisconnect):
+            pass  # the browser has gone already
+
+
+@router.post("/api/v1/me/view", response_model=ViewOut, responses=error_responses(401))
+def open_view(ctx: ContextDep, token: TokenDep) -> dict:
+    """Prepare the participant's 3D view for the current step; the page embeds `url` when available."""
+    port = services.open_viewer(ctx, token)
+    return {"available": port is not None, "url": viewer_path(token) if port is not None else None}
+
+
+@router.get("/api/v1/me/robot", response_model=ActivityOut, responses=error_responses(401))
+def robot_activity(ctx: ContextDep, token: TokenDep) -> dict:
+    """Whether the robot is moving, what it is doing, and how many 3D views are connected."""
+    return services.robot_activity(ctx, token)
+
+
+@router.post("/api/v1/me/tab", response_model=TabOut, responses=error_responses(400, 401, 422))
+def claim_tab(body: TabIn, ctx: ContextDep, token: TokenDep) -> dict:
+    """Hold or renew this tab's lease on the page (renew every few seconds); takeover moves it here."""
+    return services.claim_tab(ctx, token, body.tab_id, takeover=body.takeover)
+
+
+@router.post("/api/v1/me/tab/release", status_code=204, responses=error_responses(400, 401, 422))
+def release_tab(body: TabReleaseIn, ctx: ContextDep, token: TokenDep) -> Response:
+    """The tab is reloading or closing: free the lease at once."""
+    services.release_tab(ctx, token, body.tab_id)
+    return Response(status_code=204)

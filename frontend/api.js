@@ -1,0 +1,92 @@
+// The participant page's only knowledge of server URLs: the REST API (docs/server.md), the 3D viewer
+// and the one-tab lease (docs/frontend.md). Every call sends the token from the page's own address.
+
+const API = "/api/v1";
+
+/** The participant's token: the last segment of /p/{token}. */
+export function tokenFromLocation(location = window.location) {
+  const match = location.pathname.match(/^\/p\/([^/]+)\/?$/);
+  if (!match) throw new Error(`this page expects an address /p/<token>, not ${location.pathname}`);
+  return decodeURIComponent(match[1]);
+}
+
+/** A random id (crypto.randomUUID needs a secure context; getRandomValues does not). */
+export function randomId(bytes = 16) {
+  const values = crypto.getRandomValues(new Uint8Array(bytes));
+  return Array.from(values, (b) => b.toString(16).padStart(2, "0")).join("");
+}
+
+/** An error answer from the server: status, message and (for 409) the participant's current state. */
+export class ApiError extends Error {
+  constructor(status, detail, state) {
+    super(detail);
+    this.status = status;
+    this.state = state ?? null;
+  }
+}
+
+export class ParticipantApi {
+  constructor(token) {
+    this.token = token;
+  }
+
+  get headers() {
+    return { Authorization: `Bearer ${this.token}`, "Content-Type": "application/json" };
+  }
+
+  async request(method, path, body, { key = null, retries = 4 } = {}) {
+    const headers = { ...this.headers };
+    if (key) headers["Idempotency-Key"] = key;
+    for (let attempt = 0; ; attempt++) {
+      let response;
+      try {
+        response = await fetch(API + path, {
+          method, headers, body: body === undefined ? undefined : JSON.stringify(body), cache: "no-store",
+        });
+      } catch (networkError) {
+        // The same Idempotency-Key makes a retry harmless if the first request did arrive.
+        if (attempt >= retries) throw new ApiError(0, "the server cannot be reached", null);
+        await new Promise((resolve) => setTimeout(resolve, 500 * 2 ** attempt));
+        continue;
+      }
+      if (response.status === 204) return null;
+      const data = await response.json().catch(() => ({}));
+      if (!response.ok) throw new ApiError(response.status, data.detail || response.statusText, data.state);
+      return data;
+    }
+  }
+
+  /** An action: a fresh Idempotency-Key per user action, reused by its retries. */
+  act(path, body) {
+    return this.request("POST", path, body, { key: randomId() });
+  }
+
+  state() { return this.request("GET", "/me", undefined, { retries: 0 }); }
+  consent(agree, version) { return this.act("/me/consent", { agree, consent_version: version }); }
+  instructionsRead() { return this.act("/me/instructions", undefined); }
+  place(object, guard) { return this.act("/me/placements", { object, ...guard }); }
+  finishDemonstration(guard) { return this.act("/me/demonstration/finish", guard); }
+  startExecution(guard) { return this.act("/me/execution", guard); }
+  assess(acceptable, guard) { return this.act("/me/assessment", { acceptable, ...guard }); }
+  answerQuestionnaire(answers) { return this.act("/me/questionnaire", { answers }); }
+
+  /** Prepare the 3D view for the current step: {available, url}. */
+  openView() { return this.request("POST", "/me/view", undefined, { retries: 1 }); }
+  robot() { return this.request("GET", "/me/robot", undefined, { retries: 0 }); }
+
+  claimTab(tabId, takeover = false) {
+    return this.request("POST", "/me/tab", { tab_id: tabId, takeover }, { retries: 0 });
+  }
+
+  /** Free the lease while the page unloads (keepalive lets the request outlive the page). */
+  releaseTab(tabId) {
+    fetch(`${API}/me/tab/release`, {
+      method: "POST", headers: this.headers, body: JSON.stringify({ tab_id: tabId }), keepalive: true,
+    }).catch(() => {});
+  }
+}
+
+/** Address of one of the participant page's own files (scripts, style sheet, pictures). */
+export function assetUrl(name) {
+  return `/participant/assets/${encodeURIComponent(name)}`;
+}

@@ -1,0 +1,237 @@
+// What the participant sees at each stage: functions from (state, handlers) to DOM nodes. No fetching
+// here; participant.js owns the state and passes callbacks. Plain words only: no formulas, no jargon.
+
+export function h(tag, attrs = {}, ...children) {
+  const el = document.createElement(tag);
+  for (const [name, value] of Object.entries(attrs)) {
+    if (value === false || value === null || value === undefined) continue;
+    if (name.startsWith("on")) el.addEventListener(name.slice(2), value);
+    else if (name === "class") el.className = value;
+    else el.setAttribute(name, value === true ? "" : value);
+  }
+  for (const child of children.flat()) {
+    if (child === null || child === undefined || child === false) continue;
+    el.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return el;
+}
+
+export const pretty = (obj) => obj.replaceAll("_", " ");
+const list = (objs) => (objs.length ? objs.map(pretty).join(", ") : "nothing yet");
+const GOAL_PICTURES = { task1: "goal-task1.png", task2: "goal-task2.png" };
+const STEP_NAMES = { practice: "Practice round", demonstration: "Demonstration", query: "Question", test: "Test" };
+const LIKERT = ["Strongly disagree", "Disagree", "Neither", "Agree", "Strongly agree"];
+
+function heading(text) {
+  return h("h1", { tabindex: "-1", class: "focus-target" }, text);
+}
+
+export function consentView(state, { onAgree, onDecline }) {
+  return h("section", { class: "card narrow" },
+    heading("Welcome"),
+    h("p", { class: "consent-text" }, state.consent.text),
+    h("p", {}, "Do you agree to take part?"),
+    h("div", { class: "buttons" },
+      h("button", { class: "primary", onclick: onAgree }, "I agree, continue"),
+      h("button", { onclick: onDecline }, "I do not agree")));
+}
+
+export function instructionsView(_state, { onStart }) {
+  return h("section", { class: "card narrow" },
+    heading("How this works"),
+    h("p", {}, "You will teach a robot arm to set a dinner table. The arm takes five objects (a dinner plate, a small ",
+      "plate, a bowl, a knife and a fork) from Table A, on the right of the 3D view, and puts them on Table B, on ",
+      "the left."),
+    h("ol", {},
+      h("li", {}, h("strong", {}, "You show it. "), "Click an object in the 3D view and the robot places it. ",
+        "Click the objects in the order you want. Press the finish button when you are done; you do not have to ",
+        "place every object if the task says so."),
+      h("li", {}, h("strong", {}, "It asks you. "), "The robot tries the task its own way. When it has finished, ",
+        "tell it whether what it did is acceptable for the task."),
+      h("li", {}, h("strong", {}, "It shows you. "), "At the end of each task the robot sets the table by itself ",
+        "a few times so you can see what it has learned.")),
+    h("p", {}, "The order in which things are placed can matter. Before each task you will see what the table should ",
+      "look like at the end."),
+    h("div", { class: "buttons" }, h("button", { class: "primary", onclick: onStart }, "Start")));
+}
+
+export function goalFigure(task, assetUrl) {
+  const picture = GOAL_PICTURES[task.key];
+  if (!picture) return null;
+  return h("figure", { class: "goal" },
+    h("img", { src: assetUrl(picture), alt: `Table B when ${task.name} is done: the objects in their places, labelled` }),
+    h("figcaption", {}, "What Table B should look like at the end."));
+}
+
+export function taskIntroView(state, { onBegin, assetUrl }) {
+  const task = state.task;
+  return h("section", { class: "card intro" },
+    h("p", { class: "eyebrow" }, `Task ${task.index + 1} of ${task.total}`),
+    heading(task.name),
+    h("div", { class: "intro-body" },
+      h("div", {}, h("p", { class: "instructions" }, task.instructions),
+        h("div", { class: "buttons" }, h("button", { class: "primary", onclick: onBegin }, "Begin this task"))),
+      goalFigure(task, assetUrl)));
+}
+
+export function progressText(state) {
+  const { task, step } = state;
+  if (!task || !step) return "";
+  return `Task ${task.index + 1} of ${task.total} · ${STEP_NAMES[step.kind]} ${step.index + 1} of ${step.total}`;
+}
+
+/** The side panel next to the 3D view during a task. `live` is the robot's activity ({moving, caption}). */
+export function taskPanel(state, live, handlers) {
+  const { step } = state;
+  const body = step.kind === "practice" || step.kind === "demonstration"
+    ? demonstrationPanel(state, live, handlers)
+    : executionPanel(state, live, handlers);
+  return h("div", { class: "panel-inner" },
+    h("p", { class: "eyebrow", id: "progress" }, progressText(state)),
+    body,
+    h("details", { class: "reminder" },
+      h("summary", {}, "Show the task again"),
+      h("p", {}, state.task.instructions),
+      goalFigure(state.task, handlers.assetUrl)));
+}
+
+function statusLine(text, busy = false) {
+  return h("p", { class: busy ? "status busy" : "status", id: "status", role: "status", "aria-live": "polite" }, text);
+}
+
+function demonstrationPanel(state, live, { onPlace, onFinish, pending }) {
+  const { step, demonstration } = state;
+  const placed = demonstration.placed;
+  const waiting = state.objects.filter((o) => !placed.includes(o));
+  const moving = live.moving || pending;
+  const practice = step.kind === "practice";
+  const status = moving
+    ? (live.caption ? `${live.caption}. Please wait until it has finished.` : "The robot is moving. Please wait.")
+    : waiting.length
+      ? "Click the next object in the 3D view, or finish if the table is set."
+      : "All objects are on Table B. Press the finish button.";
+  return h("div", {},
+    heading(practice ? "Practice: try it out" : "Show the robot how to set the table"),
+    h("p", {}, practice
+      ? "This round does not count. Click objects on the right-hand table and watch the robot put them on the left-hand table."
+      : "Click the objects on the right-hand table (Table A) in the order you want them on the left-hand table (Table B). The robot places each one."),
+    statusLine(status, moving),
+    h("p", { class: "placed" }, h("strong", {}, "On Table B: "), list(placed)),
+    waiting.length ? h("div", { class: "object-buttons" },
+      h("p", { class: "hint" }, "Or choose with the keyboard:"),
+      waiting.map((obj) => h("button", { class: "object", "data-object": obj, disabled: moving,
+        onclick: () => onPlace(obj) }, pretty(obj)))) : null,
+    h("div", { class: "buttons" },
+      h("button", { class: "primary", id: "finish", disabled: moving, onclick: onFinish },
+        practice ? "Finish practice" : "Finish demonstration")));
+}
+
+function executionPanel(state, live, { onStart, onAssess, pending }) {
+  const { step, execution } = state;
+  const query = step.kind === "query";
+  const title = query ? "The robot has a question" : "The robot shows what it learned";
+  if (execution.status === "not_started") {
+    return h("div", {},
+      heading(title),
+      h("p", {}, query
+        ? "The robot will set the table its own way. Watch it, then tell it whether that way is acceptable for this task."
+        : "The robot will set the table by itself. Watch it, then say whether it did the task correctly."),
+      statusLine("Press the button when you are ready to watch."),
+      h("div", { class: "buttons" },
+        h("button", { class: "primary", id: "start", disabled: pending, onclick: onStart }, "Watch the robot")));
+  }
+  const events = execution.events || [];
+  if (execution.status === "running") {
+    return h("div", {},
+      heading(title),
+      statusLine(live.caption ? `${live.caption}.` : `The robot is setting the table (${events.length} objects).`, true),
+      h("p", { class: "hint" }, "The buttons to answer appear when the robot has finished."));
+  }
+  const finalLabels = execution.trace?.length ? execution.trace[execution.trace.length - 1] : [];
+  const missed = events.filter((o) => !finalLabels.includes(o));
+  return h("div", {},
+    heading(title),
+    statusLine("The robot has finished."),
+    h("p", { class: "placed" }, h("strong", {}, "It placed, in this order: "), list(events)),
+    missed.length ? h("p", { class: "placed" }, h("strong", {}, "Not in place at the end: "), list(missed)) : null,
+    h("p", { class: "question" }, query
+      ? "Is this an acceptable way to set the table for this task?"
+      : "Did the robot do the task correctly?"),
+    h("div", { class: "buttons" },
+      h("button", { class: "primary good", id: "acceptable", disabled: pending, onclick: () => onAssess(true) },
+        query ? "Acceptable" : "Yes, correct"),
+      h("button", { class: "primary bad", id: "unacceptable", disabled: pending, onclick: () => onAssess(false) },
+        query ? "Unacceptable" : "No, not correct")));
+}
+
+function likertItem(item, index) {
+  const name = `q-${item.id}`;
+  const scale = item.kind === "likert5"
+    ? LIKERT.map((label, i) => [i + 1, label])
+    : Array.from({ length: 10 }, (_, i) => [i + 1, String(i + 1)]);
+  return h("fieldset", { class: `item ${item.kind}` },
+    h("legend", {}, `${index + 1}. ${item.text}`, item.required ? "" : " (optional)"),
+    h("div", { class: "scale" }, scale.map(([value, label]) =>
+      h("label", {}, h("input", { type: "radio", name, value: String(value), required: item.required }),
+        h("span", {}, label)))));
+}
+
+export function questionnaireView(state, { onSubmit, pending }) {
+  const items = state.questionnaire || [];
+  const form = h("form", { class: "questionnaire", novalidate: true },
+    items.map((item, i) => item.kind === "text"
+      ? h("fieldset", { class: "item text" }, h("legend", {}, `${i + 1}. ${item.text}`, item.required ? "" : " (optional)"),
+        h("textarea", { name: `q-${item.id}`, rows: "3", maxlength: "5000" }))
+      : likertItem(item, i)),
+    h("p", { class: "error", id: "form-error", role: "alert" }),
+    h("div", { class: "buttons" }, h("button", { class: "primary", type: "submit", disabled: pending }, "Submit answers")));
+  form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    const answers = {};
+    const missing = [];
+    for (const item of items) {
+      const field = form.elements[`q-${item.id}`];
+      let value = item.kind === "text" ? field.value.trim() : (field.value ? Number(field.value) : null);
+      if (value === "" || value === null) value = null;
+      if (value === null && item.required) missing.push(item);
+      answers[item.id] = value;
+    }
+    const error = form.querySelector("#form-error");
+    if (missing.length) {
+      error.textContent = `Please answer question ${missing.map((m) => items.indexOf(m) + 1).join(", ")}.`;
+      return;
+    }
+    error.textContent = "";
+    onSubmit(answers);
+  });
+  return h("section", { class: "card narrow" },
+    heading("A few questions"),
+    h("p", {}, "Thank you for teaching the robot. Please tell us how it went."),
+    form);
+}
+
+export function doneView(state, { redirectSeconds }) {
+  const { code, redirect_url: url, learned } = state.completion;
+  return h("section", { class: "card narrow" },
+    heading("Thank you!"),
+    h("p", {}, "You have finished the study. Your completion code is:"),
+    h("p", { class: "code", id: "completion-code" }, code),
+    learned?.length ? h("div", {}, h("p", {}, "What the robot now believes the task is:"),
+      h("ul", {}, learned.map((t) => h("li", {}, `Task ${t.task_index + 1}: ${t.map_description}.`)))) : null,
+    url ? h("p", {}, `You will be taken back in ${redirectSeconds} seconds. `,
+      h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
+      : h("p", {}, "You can close this page now."));
+}
+
+export function withdrawnView() {
+  return h("section", { class: "card narrow" }, heading("You chose not to take part"),
+    h("p", {}, "Nothing more will be recorded. You can close this page."));
+}
+
+export function elsewhereView({ onTakeOver }) {
+  return h("section", { class: "card narrow", id: "elsewhere" },
+    heading("This study is open in another tab"),
+    h("p", {}, "You can only work on the study in one tab or window at a time. Please continue in the other tab, ",
+      "or close it: this page then continues by itself within a few seconds."),
+    h("div", { class: "buttons" }, h("button", { onclick: onTakeOver }, "Use this tab instead")));
+}

@@ -1,0 +1,61 @@
+"""Render docs/participant.png: the participant page at 1280x800 while the robot carries out a query (run as a script)."""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
+
+import httpx  # noqa: E402
+
+from conftest import LiveServer, launch_chromium  # noqa: E402
+from tests.web.conftest import open_study, study_spec  # noqa: E402
+
+OUT = Path(__file__).resolve().parents[2] / "docs" / "participant.png"
+
+
+def _caption(server: LiveServer, key: str) -> str:
+    activity = server.ctx.robot.activity(key)
+    return "" if activity is None else activity.caption
+
+
+def main(out: Path = OUT) -> None:
+    """Two demonstrations through the API, then the page starts the first query and is captured mid-motion."""
+    with tempfile.TemporaryDirectory() as root:
+        server = LiveServer(Path(root), robot="mujoco", robot_speed=1.0).start()
+        try:
+            spec = study_spec(["active"], n_practice=0, n_demonstrations=2, n_queries=3, n_tests=1)
+            study_id = open_study(server.url, spec)
+            with launch_chromium({"width": 1280, "height": 800}) as context:
+                page = context.new_page()
+                page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=screenshot")
+                page.get_by_role("button", name="I agree, continue").click()
+                page.get_by_role("button", name="Start").click()
+                page.get_by_role("button", name="Begin this task").click()
+                token = page.url.rstrip("/").rsplit("/", 1)[-1]
+                headers = {"Authorization": f"Bearer {token}"}
+                for demo in (["dinner_plate", "small_plate", "bowl", "knife", "fork"], ["dinner_plate", "bowl"]):
+                    for obj in demo:
+                        httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj}, headers=headers)
+                    httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers)
+                page.get_by_role("button", name="Watch the robot").click()
+                key = f"{httpx.get(f'{server.url}/api/v1/me', headers=headers).json()['participant_id']}/0"
+                deadline = time.monotonic() + 60
+                while "(2 of" not in _caption(server, key):
+                    if time.monotonic() > deadline:
+                        raise TimeoutError("the robot did not start its second placement within 60 s")
+                    time.sleep(0.1)
+                page.wait_for_function("() => document.querySelector('#status')?.textContent.includes('(2 of')")
+                time.sleep(1.5)  # mid-transport: the first object set, the second one in the gripper
+                page.screenshot(path=str(out))
+        finally:
+            server.stop()
+    print(f"wrote {out}")
+
+
+if __name__ == "__main__":
+    main(Path(sys.argv[1]) if len(sys.argv) > 1 else OUT)

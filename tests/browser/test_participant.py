@@ -1,0 +1,262 @@
+"""The participant page in headless Chromium with the MuJoCo robot: a whole Active session by clicking
+objects in the 3D view, a reload in the middle of a query, and a second tab."""
+
+from __future__ import annotations
+
+import csv
+import io
+import time
+
+import httpx
+import numpy as np
+import pytest
+
+from tableteach.client import ExperimenterClient
+from tableteach.sim.recordings import list_recordings, load_recording
+from tests.web.conftest import EXPERIMENTER_TOKEN, open_study, study_spec
+
+from test_scene_view import _project
+
+pytestmark = pytest.mark.browser
+
+SHORT = dict(n_practice=0, n_demonstrations=2, n_queries=1, n_tests=1)
+
+
+def _study(server, **extra) -> str:
+    spec = study_spec(["active"], **{**SHORT, **extra})
+    return open_study(server.url, spec)
+
+
+def _token(page) -> str:
+    return page.url.rstrip("/").rsplit("/", 1)[-1]
+
+
+def _participant_id(server, token: str) -> int:
+    from tableteach import services
+
+    return services.participant_state(server.ctx, token)["participant_id"]
+
+
+def _wait_for_camera(view, timeout: float = 60.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for client in view.server.get_clients().values():
+            try:
+                client.camera.fov  # raises until the browser has reported its camera
+                return client.camera
+            except AssertionError:
+                pass
+        time.sleep(0.1)
+    raise TimeoutError(f"no browser camera reported within {timeout} s: expected the 3D view to connect")
+
+
+def _scene(server, key: str, timeout: float = 30.0):
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        scene = server.ctx.robot.scene(key)
+        if scene is not None and scene[1] is not None:
+            return scene
+        time.sleep(0.1)
+    raise TimeoutError(f"the robot has no view of table {key}: expected the page to open one")
+
+
+def _click_object(page, server, key: str, obj: str) -> None:
+    """Click an object in the embedded viser view (its position projected through the browser's camera)."""
+    world, view = _scene(server, key)
+    camera = _wait_for_camera(view)
+    canvas = page.frame_locator("#viewer-frame").locator("canvas").first
+    canvas.scroll_into_view_if_needed()
+    box = canvas.bounding_box()
+    geoms = np.flatnonzero(world.model.geom_bodyid == world.layout.body[obj])
+    point = world.data.geom_xpos[geoms].mean(axis=0) + np.array([0.0, 0.0, 0.01])
+    x, y = _project(camera, point, box["width"], box["height"])
+    page.mouse.move(box["x"] + x, box["y"] + y)
+    time.sleep(0.4)  # let the hover raycast run before pressing
+    page.mouse.click(box["x"] + x, box["y"] + y)
+
+
+def _demonstrate_by_clicking(page, server, key: str, objects: list[str]) -> None:
+    for i, obj in enumerate(objects):
+        placed_before = page.locator(".placed").inner_text()
+        assert obj.replace("_", " ") not in placed_before
+        for attempt in range(3):  # software WebGL: a click before the scene has drawn can miss
+            _click_object(page, server, key, obj)
+            try:
+                page.wait_for_function(
+                    "name => document.querySelector('.placed')?.textContent.includes(name)", arg=obj.replace("_", " "),
+                    timeout=15_000)
+                break
+            except Exception:
+                if attempt == 2:
+                    raise
+        # The placed object is no longer offered, and the robot finishes moving before the next click.
+        page.wait_for_selector("#finish:not([disabled])", timeout=60_000)
+        assert page.locator(f'button.object[data-object="{obj}"]').count() == 0
+
+
+def _watch_and_judge(page, acceptable: bool) -> None:
+    page.get_by_role("button", name="Watch the robot").click()
+    page.wait_for_selector("#status.busy, #acceptable", timeout=30_000)
+    assert page.locator("#acceptable").count() == 0 or page.locator("#status.busy").count() == 0
+    page.wait_for_selector("#acceptable", timeout=90_000)
+    assert "finished" in page.locator("#status").inner_text()
+    page.locator("#acceptable" if acceptable else "#unacceptable").click()
+
+
+def _events(server, study_id: str) -> list[dict[str, str]]:
+    exp = ExperimenterClient(server.url, token=EXPERIMENTER_TOKEN)
+    try:
+        return list(csv.DictReader(io.StringIO(exp.export(study_id, "events"))))
+    finally:
+        exp.close()
+
+
+def _begin(page, server, study_id: str, pid: str) -> str:
+    """Open the study link, consent, read the instructions and the task's intro; the participant's token."""
+    page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID={pid}&STUDY_ID=s1&SESSION_ID=x1")
+    page.get_by_role("button", name="I agree, continue").click()
+    page.get_by_role("button", name="Start").click()
+    begin = page.get_by_role("button", name="Begin this task")
+    begin.wait_for()
+    assert page.locator("figure.goal img").count() == 1  # the goal picture of Task 1
+    begin.click()
+    return _token(page)
+
+
+def test_a_participant_completes_an_active_session_by_clicking_in_the_3d_view(browser_page, mujoco_server):
+    server, page = mujoco_server, browser_page
+    study_id = _study(server, completion_url=f"{server.url}/healthz?cc={{code}}")
+    token = _begin(page, server, study_id, "browser-full")
+    key = f"{_participant_id(server, token)}/0"
+
+    page.wait_for_selector("text=Demonstration 1 of 2")
+    _demonstrate_by_clicking(page, server, key, ["dinner_plate", "bowl"])
+    page.locator("#finish").click()
+    page.wait_for_selector("text=Demonstration 2 of 2")
+    _demonstrate_by_clicking(page, server, key, ["dinner_plate", "small_plate"])
+    page.locator("#finish").click()
+
+    page.wait_for_selector("text=Question 1 of 1")
+    _watch_and_judge(page, acceptable=False)
+    page.wait_for_selector("text=Test 1 of 1")
+    _watch_and_judge(page, acceptable=True)
+
+    page.wait_for_selector("text=A few questions")
+    for radio in ("q-learned", "q-overall"):
+        page.locator(f'input[name="{radio}"][value="4"]').check()
+    page.get_by_role("button", name="Submit answers").click()
+    code = page.locator("#completion-code").inner_text().strip()
+    assert len(code) == 8
+    assert page.locator("#redirect").get_attribute("href") == f"{server.url}/healthz?cc={code}"
+    page.wait_for_url(f"**/healthz?cc={code}", timeout=30_000)
+
+    events = _events(server, study_id)
+    placed = [e["object"] for e in events if e["kind"] == "place"]
+    assert placed == ["dinner_plate", "bowl", "dinner_plate", "small_plate"]
+    kinds = [e["kind"] for e in events]
+    assert kinds.count("execution_finished") == 2 and kinds.count("assessment") == 2 and kinds[-1] == "completed"
+    assert [e["acceptable"] for e in events if e["kind"] == "assessment"] == ["False", "True"]
+    # The robot's labels come from MuJoCo: every placement the participant clicked is in its slot.
+    last = [e for e in events if e["kind"] == "demonstration"][-1]
+    assert last["trace"] == '[[],["dinner_plate"],["dinner_plate","small_plate"]]'
+
+    pid = int(events[0]["participant_id"])
+    saved = list_recordings(server.settings.data_dir, pid)
+    assert [(r.step_kind, r.step_index) for r in saved] == [("demonstration", 0), ("demonstration", 1), ("query", 0),
+                                                           ("test", 0)]
+    query = load_recording(server.settings.data_dir, saved[2])
+    finished = next(e for e in events if e["kind"] == "execution_finished")
+    assert list(query.events) == _json_list(finished["robot_events"])
+    assert len(query.action_ends) == len(query.events) and query.recording.duration > 3.0
+
+
+def _json_list(cell: str) -> list[str]:
+    """A JSON list cell of events.csv."""
+    import json
+
+    return json.loads(cell)
+
+
+def test_a_reload_in_the_middle_of_a_query_resumes_the_same_query(browser_page, slow_mujoco_server):
+    server, page = slow_mujoco_server, browser_page
+    study_id = _study(server, n_tests=0)
+    token = _begin(page, server, study_id, "browser-reload")
+    headers = {"Authorization": f"Bearer {token}"}
+    for demo in (["dinner_plate", "small_plate", "bowl"], ["knife"]):  # through the API: the same service calls
+        for obj in demo:
+            assert httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj}, headers=headers).status_code == 200
+        assert httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers).status_code == 200
+
+    page.wait_for_selector("text=Question 1 of 1")
+    page.get_by_role("button", name="Watch the robot").click()
+    page.wait_for_selector("#status.busy")
+    before = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()["execution"]
+    assert before["status"] == "running"
+
+    page.reload()
+    page.wait_for_selector("text=Question 1 of 1")
+    page.wait_for_selector("#acceptable", timeout=90_000)
+    after = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()
+    assert after["step"] == {"kind": "query", "index": 0, "total": 1}
+    assert after["execution"]["events"] == before["events"] and after["execution"]["status"] == "finished"
+    placed_text = page.locator(".placed").first.inner_text()
+    assert all(obj.replace("_", " ") in placed_text for obj in before["events"])
+
+    page.locator("#acceptable").click()
+    page.wait_for_selector("text=A few questions")
+    kinds = [e["kind"] for e in _events(server, study_id)]
+    assert kinds.count("execution_started") == 1 and kinds.count("assessment") == 1
+
+
+def test_a_second_tab_is_told_the_session_is_open_elsewhere(chromium_browser, mujoco_server):
+    server = mujoco_server
+    study_id = _study(server)
+    first = chromium_browser.new_page()
+    second = chromium_browser.new_page()
+    try:
+        first.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=browser-tabs")
+        first.get_by_role("button", name="I agree, continue").wait_for()
+        second.goto(first.url)
+        second.wait_for_selector("#elsewhere")
+        assert "open in another tab" in second.locator("#elsewhere h1").inner_text()
+        assert second.get_by_role("button", name="I agree, continue").count() == 0
+        # The first tab keeps working; once it is closed, the second continues by itself.
+        first.get_by_role("button", name="I agree, continue").click()
+        first.get_by_role("button", name="Start").wait_for()
+        first.close()
+        second.get_by_role("button", name="Start").wait_for(timeout=30_000)
+        # Taking the page back: the other tab is told.
+        third = chromium_browser.new_page()
+        try:
+            third.goto(second.url)
+            third.wait_for_selector("#elsewhere")
+            third.get_by_role("button", name="Use this tab instead").click()
+            third.get_by_role("button", name="Start").wait_for()
+            second.wait_for_selector("#elsewhere", timeout=20_000)
+        finally:
+            third.close()
+    finally:
+        for page in (first, second):
+            if not page.is_closed():
+                page.close()
+
+
+def test_the_served_page_shows_the_scene_through_the_proxy(browser_page, tmp_path):
+    """`tableteach serve` in its own process: the page embeds the 3D view and its websocket reaches viser."""
+    from tests.web.conftest import ServerProcess
+
+    server = ServerProcess(tmp_path / "study.db", TABLETEACH_ROBOT="mujoco",
+                           TABLETEACH_DATA_DIR=str(tmp_path / "data")).start()
+    try:
+        study_id = open_study(server.url, study_spec(["active"], **SHORT))
+        page = browser_page
+        token = _begin(page, server, study_id, "browser-served")
+        page.frame_locator("#viewer-frame").locator("canvas").first.wait_for()
+        headers = {"Authorization": f"Bearer {token}"}
+        deadline = time.monotonic() + 60
+        while (robot := httpx.get(f"{server.url}/api/v1/me/robot", headers=headers).json())["watchers"] < 1:
+            assert time.monotonic() < deadline, f"no 3D view connected through the proxy within 60 s: {robot}"
+            time.sleep(0.5)
+        assert page.locator("#viewer-note").is_hidden()
+    finally:
+        server.stop()

@@ -1,0 +1,152 @@
+"""The participant page's server side with the MuJoCo robot: the viser websocket proxy, the page and its
+assets, the one-tab lease, click-free REST sessions that save recordings, and idle views being stopped."""
+
+from __future__ import annotations
+
+import socket
+import time
+import warnings
+from collections.abc import Iterator
+from importlib.metadata import version
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+from tableteach.services import TabLeases
+from tableteach.sim.recordings import list_recordings, load_recording
+
+from .conftest import EXPERIMENTER_TOKEN
+from .helpers import bearer, demonstrate, make_study, to_teaching
+
+
+@pytest.fixture
+def mujoco_client(tmp_path: Path) -> Iterator[Any]:
+    """An in-process app with the MuJoCo robot; .ctx is its services context."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from starlette.testclient import TestClient
+
+    from tableteach.config import Settings
+    from tableteach.db.migrate import upgrade_head
+    from tableteach.web.app import create_app
+
+    settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN,
+                        robot="mujoco", data_dir=tmp_path / "data")
+    upgrade_head(settings.database_url)
+    app = create_app(settings)
+    with TestClient(app) as client:
+        client.ctx = app.state.context  # type: ignore[attr-defined]
+        yield client
+
+
+def test_the_proxy_forwards_visers_subprotocol_and_checks_the_token(mujoco_client):
+    from starlette.websockets import WebSocketDisconnect
+
+    study_id = make_study(mujoco_client, n_practice=0)
+    token, _state = to_teaching(mujoco_client, study_id)
+    protocol = f"viser-v{version('viser')}"
+    with mujoco_client.websocket_connect(f"/p/{token}/viewer", subprotocols=[protocol]) as ws:
+        assert ws.accepted_subprotocol == protocol
+        assert len(ws.receive_bytes()) > 0  # viser's scene, relayed from its own port
+    with pytest.raises(WebSocketDisconnect) as refused:
+        with mujoco_client.websocket_connect("/p/not-a-token/viewer", subprotocols=[protocol]):
+            pass
+    assert refused.value.code == 1008
+
+
+def test_no_view_outside_a_task(mujoco_client):
+    from starlette.websockets import WebSocketDisconnect
+
+    study_id = make_study(mujoco_client)
+    state = mujoco_client.post(f"/api/v1/studies/{study_id}/join", json={}).json()["state"]
+    assert mujoco_client.post("/api/v1/me/view", headers=bearer(state["token"])).json() == {"available": False,
+                                                                                             "url": None}
+    with pytest.raises(WebSocketDisconnect):
+        with mujoco_client.websocket_connect(f"/p/{state['token']}/viewer"):
+            pass
+
+
+def test_the_page_its_assets_and_the_viewer_page(mujoco_client):
+    study_id = make_study(mujoco_client)
+    token = mujoco_client.post(f"/api/v1/studies/{study_id}/join", json={}).json()["token"]
+    page = mujoco_client.get(f"/p/{token}")
+    assert page.status_code == 200 and "participant.js" in page.text
+    assert page.headers["referrer-policy"] == "no-referrer"
+    for name in ("api.js", "participant.js", "participant-views.js", "style.css", "goal-task1.png", "goal-task2.png"):
+        assert mujoco_client.get(f"/participant/assets/{name}").status_code == 200, name
+    assert mujoco_client.get("/participant/assets/dashboard.js").status_code == 404
+    assert mujoco_client.get("/participant/assets/..%2Fbackend%2Fconfig.py").status_code == 404
+    viewer = mujoco_client.get(f"/p/{token}/viewer/", headers={"Accept-Encoding": "gzip"})
+    assert viewer.status_code == 200 and viewer.text.lstrip().lower().startswith("<!doctype html")
+    assert mujoco_client.get("/p/not-a-token/viewer/").status_code == 404
+
+
+def test_one_tab_holds_the_page_until_it_lets_go_or_is_taken_over(mujoco_client):
+    study_id = make_study(mujoco_client)
+    h = bearer(mujoco_client.post(f"/api/v1/studies/{study_id}/join", json={}).json()["token"])
+
+    def claim(tab: str, takeover: bool = False) -> bool:
+        response = mujoco_client.post("/api/v1/me/tab", json={"tab_id": tab, "takeover": takeover}, headers=h)
+        assert response.status_code == 200, response.text
+        return response.json()["held"]
+
+    assert claim("first-tab-1") and claim("first-tab-1")
+    assert not claim("second-tab-2")
+    assert claim("second-tab-2", takeover=True)
+    assert not claim("first-tab-1")
+    assert mujoco_client.post("/api/v1/me/tab/release", json={"tab_id": "first-tab-1"}, headers=h).status_code == 204
+    assert not claim("first-tab-1")  # only the holder can let go
+    mujoco_client.post("/api/v1/me/tab/release", json={"tab_id": "second-tab-2"}, headers=h)
+    assert claim("first-tab-1")
+    assert mujoco_client.post("/api/v1/me/tab", json={"tab_id": "x"}, headers=h).status_code == 422
+
+
+def test_a_stale_lease_expires():
+    leases = TabLeases(seconds=0.05)
+    assert leases.claim(1, "a-tab-0001") and not leases.claim(1, "b-tab-0002")
+    time.sleep(0.1)
+    assert leases.claim(1, "b-tab-0002")
+
+
+def test_a_rest_session_with_the_mujoco_robot_records_every_step(mujoco_client):
+    study_id = make_study(mujoco_client, n_practice=0, n_demonstrations=1, n_queries=1, n_tests=1)
+    token, state = to_teaching(mujoco_client, study_id)
+    h = bearer(token)
+    after = demonstrate(mujoco_client, token, ["dinner_plate", "bowl"])
+    assert after["step"]["kind"] == "query"
+    for kind in ("query", "test"):
+        assert mujoco_client.post("/api/v1/me/execution", headers=h).status_code == 200
+        deadline = time.monotonic() + 60
+        while (me := mujoco_client.get("/api/v1/me", headers=h).json())["execution"]["status"] != "finished":
+            assert time.monotonic() < deadline, "the robot did not finish within 60 s"
+            time.sleep(0.1)
+        events, trace = me["execution"]["events"], me["execution"]["trace"]
+        assert len(trace) == len(events) + 1 and set(trace[-1]) == set(events)  # MuJoCo set each one in its slot
+        assert mujoco_client.post("/api/v1/me/assessment", json={"acceptable": True}, headers=h).status_code == 200
+    data_dir = mujoco_client.ctx.settings.data_dir
+    saved = list_recordings(data_dir, state["participant_id"])
+    assert [(r.step_kind, r.step_index) for r in saved] == [("demonstration", 0), ("query", 0), ("test", 0)]
+    demo = load_recording(data_dir, saved[0])
+    assert demo.events == ("dinner_plate", "bowl")
+    assert demo.trace == (frozenset(), frozenset({"dinner_plate"}), frozenset({"dinner_plate", "bowl"}))
+    assert len(demo.recording) > 300 and demo.action_ends[-1] == pytest.approx(demo.recording.times[-1], abs=1.5)
+    # The task is over: its table and view are gone.
+    assert mujoco_client.ctx.robot.scene(f"{state['participant_id']}/0") is None
+
+
+def test_an_unwatched_view_is_stopped_after_the_idle_timeout(tmp_path):
+    from tableteach.sim.robot import MujocoRobot
+
+    robot = MujocoRobot(data_dir=tmp_path, idle_seconds=0.3)
+    try:
+        port = robot.open_view("7/0", on_click=None)
+        assert robot.scene("7/0")[1] is not None
+        deadline = time.monotonic() + 10
+        while robot.scene("7/0") is not None and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert robot.scene("7/0") is None  # never used for placing: the table is dropped with its view
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", port))  # the viser server released its port
+    finally:
+        robot.shutdown()
