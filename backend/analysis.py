@@ -1,0 +1,386 @@
+"""The experimenter's analysis views: live participant table, one participant's history, learning curves, replays.
+
+Read-only: every function opens a read transaction, rebuilds beliefs with the learning core
+(core.session.beliefs_by_step) and never writes. The learning curves follow the paper's user-study
+figure: the median expected similarity to the ground truth E_P[L(phi, phi*)] and the mean entropy of
+the belief after each learning step (step 0 is the prior, step k the belief after the k-th
+demonstration or assessed query).
+"""
+
+from __future__ import annotations
+
+import math
+import statistics
+from datetime import datetime, timezone
+from functools import lru_cache
+from typing import Any
+
+from .core import session as core
+from .core.domain import get_domain
+from .db import analysis_queries as aq
+from .db import repository as repo
+from .db.tables import EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
+from .errors import NotFound
+from .services import Context
+
+TOP_K = 5
+FINISHED = ("done", "withdrawn")
+
+
+def _aware(value: datetime | None) -> datetime | None:
+    """SQLite returns naive datetimes; every stored time is UTC."""
+    if value is None or value.tzinfo is not None:
+        return value
+    return value.replace(tzinfo=timezone.utc)
+
+
+def _iso(value: datetime | None) -> str | None:
+    value = _aware(value)
+    return None if value is None else value.isoformat()
+
+
+def _study(s: Any, study_id: str) -> StudyRow:
+    study = repo.get_study(s, study_id=study_id)
+    if study is None:
+        raise NotFound(f"no study with id {study_id!r}")
+    return study
+
+
+def _participant(s: Any, study_id: str, participant_id: int) -> ParticipantRow:
+    participant = repo.get_participant(s, study_id=study_id, participant_id=participant_id)
+    if participant is None:
+        raise NotFound(f"study {study_id!r} has no participant {participant_id}")
+    return participant
+
+
+# ====================================================================== live table
+
+
+def _step_of(state: core.SessionState) -> dict[str, Any]:
+    """Where a teaching session is: phase, index and total (without planning the robot's next execution)."""
+    c = state.config
+    totals = {"practice": c.n_practice, "demonstration": c.demonstrations_needed, "query": c.queries_needed,
+              "test": c.n_tests, "done": 0}
+    phase = state.phase
+    return {"kind": phase, "index": state.count(phase) if phase != "done" else 0, "total": totals[phase]}
+
+
+def _inactive_minutes(participant: ParticipantRow, now: datetime) -> float:
+    last = _aware(participant.last_activity_at) or now
+    return max(0.0, (now - last).total_seconds() / 60)
+
+
+def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | None = None) -> dict[str, Any]:
+    """Participants with their current step and inactivity; unfinished ones idle past the threshold are dropouts."""
+    threshold = ctx.settings.active_minutes if dropout_minutes is None else dropout_minutes
+    now = utcnow()
+    with ctx.db.read() as s:
+        study = _study(s, study_id)
+        rows = []
+        for p in repo.list_participants(s, study_id=study_id):
+            inactive = _inactive_minutes(p, now)
+            step = None
+            if p.stage == "task":
+                ts = repo.get_task_session(s, participant_id=p.id, task_index=p.task_index)
+                if ts is not None:
+                    step = {"task_index": p.task_index, **_step_of(core.SessionState.from_json(ts.state_json))}
+            unfinished = p.stage not in FINISHED
+            rows.append({
+                "participant_id": p.id, "condition": p.condition, "stage": p.stage, "task_index": p.task_index,
+                "n_tasks": len(study.tasks), "step": step, "pilot": p.pilot, "prolific_pid": p.prolific_pid,
+                "status": p.stage if not unfinished else ("active" if inactive <= ctx.settings.active_minutes else "idle"),
+                "dropout": unfinished and inactive > threshold, "inactive_minutes": inactive,
+                "created_at": _iso(p.created_at), "last_activity_at": _iso(p.last_activity_at),
+                "finished_at": _iso(p.finished_at), "n_events": p.n_events, "completion_code": p.completion_code,
+            })
+    return {"study_id": study_id, "now": now.isoformat(), "dropout_minutes": threshold, "participants": rows}
+
+
+# ====================================================================== beliefs per step
+
+
+@lru_cache(maxsize=4096)  # finished sessions never change, so their per-step summaries are computed once
+def _step_summaries(state_json: str, truth_formula: str | None, top: int) -> tuple[dict[str, Any], ...]:
+    """The belief after each learning step of a stored session: entropy, similarity, MAP and top formulas."""
+    space = get_domain("dinner").clause_space
+    state = core.SessionState.from_json(state_json)
+    truth = None if truth_formula is None else space.mask_of_formula(truth_formula)
+    records: list[core.Record | None] = [None, *state.learning_records]
+    out = []
+    for step, (record, belief) in enumerate(zip(records, core.beliefs_by_step(state))):
+        out.append({
+            "step": step,
+            "record": None if record is None else {
+                "kind": record.kind, "acceptable": record.acceptable, "trace": [sorted(x) for x in record.trace]},
+            "entropy": belief.entropy,
+            "similarity": None if truth is None else belief.similarity(truth),
+            "map_similarity": None if truth is None else belief.map_similarity(truth),
+            "map_formula": space.text_of(belief.map_mask),
+            "map_description": space.describe(belief.map_mask),
+            "top": [{"formula": space.text_of(m), "description": space.describe(m), "p": p} for m, p in belief.top(top)],
+        })
+    return tuple(out)
+
+
+def _task_steps(ts: TaskSessionRow, study: StudyRow) -> list[dict[str, Any]]:
+    """Fresh copies of the cached summaries (callers may change them)."""
+    truth = study.tasks[ts.task_index].get("ground_truth")
+    return [{**step, "top": [dict(t) for t in step["top"]]} for step in _step_summaries(ts.state_json, truth, TOP_K)]
+
+
+# ====================================================================== one participant's history
+
+
+def _executions(events: list[EventRow]) -> list[dict[str, Any]]:
+    """Every practice trial, demonstration, query and test in order, with trace, verdict and learning step."""
+    out: list[dict[str, Any]] = []
+    by_step: dict[tuple[int, str, int], dict[str, Any]] = {}
+    learned: dict[int, int] = {}
+    for e in events:
+        pl = e.payload or {}
+        if e.kind not in ("place", "demonstration", "execution_started", "execution_finished", "assessment"):
+            continue
+        key = (e.task_index, e.step_kind, e.step_index)
+        item = by_step.get(key)
+        if item is None:
+            item = {"task_index": e.task_index, "kind": e.step_kind, "index": e.step_index,
+                    "by": "participant" if e.kind in ("place", "demonstration") else "robot", "status": "running",
+                    "objects": None, "trace": None, "acceptable": None, "p_acceptable": None,
+                    "learning_step": None, "started_at": _iso(e.created_at), "finished_at": None}
+            by_step[key] = item
+            out.append(item)
+        if e.kind == "place":
+            item.update(objects=pl.get("placed"))
+        elif e.kind == "demonstration":
+            item.update(status="finished", objects=pl.get("placed"), trace=pl.get("trace"),
+                        acceptable=True if e.step_kind == "demonstration" else None, finished_at=_iso(e.created_at))
+        elif e.kind == "execution_started":
+            item.update(objects=pl.get("events"), p_acceptable=pl.get("p_acceptable"))
+        elif e.kind == "execution_finished":
+            item.update(status="finished", objects=pl.get("events"), trace=pl.get("trace"),
+                        finished_at=_iso(e.created_at))
+        else:
+            item.update(status="assessed", objects=pl.get("events"), trace=pl.get("trace"),
+                        acceptable=pl.get("acceptable"), p_acceptable=pl.get("p_acceptable", item["p_acceptable"]))
+        # The learner's data are demonstrations and assessed queries, in the order they were stored.
+        if (e.kind, e.step_kind) in (("demonstration", "demonstration"), ("assessment", "query")):
+            learned[e.task_index] = learned.get(e.task_index, 0) + 1
+            item["learning_step"] = learned[e.task_index]
+    return out
+
+
+def _event_view(e: EventRow) -> dict[str, Any]:
+    return {"seq": e.seq, "created_at": _iso(e.created_at), "kind": e.kind, "task_index": e.task_index,
+            "step_kind": e.step_kind, "step_index": e.step_index, "payload": e.payload or {}}
+
+
+def participant_history(ctx: Context, study_id: str, participant_id: int) -> dict[str, Any]:
+    """Everything one participant did: events, executions with traces and verdicts, the belief after each step."""
+    space = get_domain("dinner").clause_space
+    now = utcnow()
+    with ctx.db.read() as s:
+        study = _study(s, study_id)
+        p = _participant(s, study_id, participant_id)
+        events = aq.participant_events(s, participant_id=p.id)
+        executions = _executions(events)
+        tasks = []
+        for ts in repo.task_sessions_of(s, participant_id=p.id):
+            task = study.tasks[ts.task_index]
+            truth = task.get("ground_truth")
+            state = core.SessionState.from_json(ts.state_json)
+            tasks.append({
+                "task_index": ts.task_index, "task": task["key"], "name": task.get("name"),
+                "ground_truth": truth,
+                "ground_truth_description": None if truth is None else space.describe(space.mask_of_formula(truth)),
+                "step": _step_of(state), "steps": _task_steps(ts, study),
+                "executions": [x for x in executions if x["task_index"] == ts.task_index],
+            })
+        items = {item["id"]: item for item in study.questionnaire}
+        answers = [
+            {"item_id": item_id, "text": items.get(item_id, {}).get("text"), "kind": items.get(item_id, {}).get("kind"),
+             "answer": answer}
+            for e in events if e.kind == "questionnaire"
+            for item_id, answer in (e.payload.get("answers") or {}).items()
+        ]
+        inactive = _inactive_minutes(p, now)
+        unfinished = p.stage not in FINISHED
+        return {
+            "study_id": study_id,
+            "participant": {
+                "participant_id": p.id, "condition": p.condition, "stage": p.stage, "task_index": p.task_index,
+                "status": p.stage if not unfinished else ("active" if inactive <= ctx.settings.active_minutes else "idle"),
+                "pilot": p.pilot, "prolific_pid": p.prolific_pid, "created_at": _iso(p.created_at),
+                "last_activity_at": _iso(p.last_activity_at), "finished_at": _iso(p.finished_at),
+                "n_events": p.n_events, "completion_code": p.completion_code, "seed": p.seed,
+            },
+            "tasks": tasks,
+            "events": [_event_view(e) for e in events],
+            "questionnaire": answers,
+        }
+
+
+# ====================================================================== learning curves
+
+
+def _curve_points(series: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per learning step: how many participants reached it, median similarity (with its count) and mean entropy."""
+    longest = max((len(x["entropy"]) for x in series), default=0)
+    points = []
+    for step in range(longest):
+        entropies = [x["entropy"][step] for x in series if step < len(x["entropy"])]
+        sims = [x["similarity"][step] for x in series if step < len(x["similarity"]) and x["similarity"][step] is not None]
+        points.append({
+            "step": step, "n": len(entropies), "mean_entropy": statistics.fmean(entropies),
+            "n_similarity": len(sims), "median_similarity": statistics.median(sims) if sims else None,
+            "q1_similarity": _quantile(sims, 0.25), "q3_similarity": _quantile(sims, 0.75),
+        })
+    return points
+
+
+def _quantile(values: list[float], q: float) -> float | None:
+    """Linear-interpolation quantile (numpy's default), None for no values."""
+    if not values:
+        return None
+    ordered = sorted(values)
+    pos = q * (len(ordered) - 1)
+    low = int(pos)
+    high = min(low + 1, len(ordered) - 1)
+    return ordered[low] + (ordered[high] - ordered[low]) * (pos - low)
+
+
+def learning_curves(ctx: Context, study_id: str, *, finished_only: bool = False) -> dict[str, Any]:
+    """Per task and condition (and all conditions together): the curves across participants, and each one's own."""
+    with ctx.db.read() as s:
+        study = _study(s, study_id)
+        study_tasks, study_conditions = list(study.tasks), list(study.conditions)
+        per_task: dict[int, list[dict[str, Any]]] = {i: [] for i in range(len(study_tasks))}
+        for ts, p in aq.study_task_sessions_with_participants(s, study_id=study_id):
+            if finished_only and p.stage != "done":
+                continue
+            steps = _step_summaries(ts.state_json, study_tasks[ts.task_index].get("ground_truth"), TOP_K)
+            per_task[ts.task_index].append({
+                "participant_id": p.id, "condition": p.condition, "finished": p.stage == "done",
+                "entropy": [x["entropy"] for x in steps], "similarity": [x["similarity"] for x in steps],
+            })
+    tasks = []
+    for index, series in per_task.items():
+        task = study_tasks[index]
+        conditions = [c for c in study_conditions if any(x["condition"] == c for x in series)]
+        tasks.append({
+            "task_index": index, "task": task["key"], "name": task.get("name"),
+            "has_ground_truth": task.get("ground_truth") is not None,
+            "all": _curve_points(series),
+            "conditions": [{"condition": c, "points": _curve_points([x for x in series if x["condition"] == c])}
+                           for c in conditions],
+            "participants": series,
+        })
+    return {"study_id": study_id, "finished_only": finished_only, "tasks": tasks}
+
+
+# ====================================================================== replays
+
+
+def _quat_yaw(w: float, x: float, y: float, z: float) -> float:
+    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
+
+
+@lru_cache(maxsize=1)
+def table_layout() -> dict[str, Any]:
+    """The scene seen from above (metres, world frame): both tables, the robot's base, each object's size and poses."""
+    from .sim.scene import load_scene  # the sim adapter imports MuJoCo; only replays need it
+
+    model, layout = load_scene()
+    tables = []
+    for name, geom in (("Table A", "table_a_top"), ("Table B", "table_b_top")):
+        g = model.geom(geom)
+        centre = model.body(int(g.bodyid[0])).pos + g.pos
+        tables.append({"name": name, "x": float(centre[0]), "y": float(centre[1]),
+                       "half_x": float(g.size[0]), "half_y": float(g.size[1])})
+    pedestal = model.geom("pedestal")
+    objects = {}
+    for obj in layout.objects:
+        body = model.body(obj)
+        half_x, half_y = _footprint(model, layout.body[obj])
+        objects[obj] = {
+            "shape": "disc" if abs(half_x - half_y) < 0.01 else "bar",
+            "half_x": half_x, "half_y": half_y,
+            "start": {"x": float(body.pos[0]), "y": float(body.pos[1]), "yaw": _quat_yaw(*map(float, body.quat))},
+            "slot": {"x": float(layout.slot[obj].pos[0]), "y": float(layout.slot[obj].pos[1]), "yaw": layout.slot[obj].yaw},
+        }
+    return {"tables": tables, "robot": {"x": 0.0, "y": 0.0, "radius": float(pedestal.size[0])}, "objects": objects}
+
+
+def _footprint(model: Any, body: int) -> tuple[float, float]:
+    """Half extents in x and y of a body's drawn geoms, in the body's frame (from their rotated bounding boxes)."""
+    xs, ys = [0.0], [0.0]
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] != body or model.geom_group[g] == 3:  # group 3: collision only, not drawn
+            continue
+        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
+        rot = _quat_matrix(*map(float, model.geom_quat[g]))
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                for sz in (-1, 1):
+                    corner = [centre[0] + sx * half[0], centre[1] + sy * half[1], centre[2] + sz * half[2]]
+                    xs.append(abs(model.geom_pos[g][0] + sum(rot[0][k] * corner[k] for k in range(3))))
+                    ys.append(abs(model.geom_pos[g][1] + sum(rot[1][k] * corner[k] for k in range(3))))
+    return max(xs), max(ys)
+
+
+def _quat_matrix(w: float, x: float, y: float, z: float) -> list[list[float]]:
+    """Rotation matrix of a unit quaternion (w, x, y, z)."""
+    return [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
+
+
+REPLAY_FPS = 15.0
+ARM_BODIES = ("forearm", "hand")  # the elbow and the hand: enough to draw the arm from above
+
+
+def _recording_view(saved: Any, objects: tuple[str, ...]) -> dict[str, Any]:
+    """The objects' and arm's poses at no more than REPLAY_FPS, rounded to 0.1 mm (JSON stays small)."""
+    rec = saved.recording
+    keep = [i for i, b in enumerate(rec.bodies) if b in objects or b in ARM_BODIES]
+    times = rec.times
+    stride = 1
+    if len(times) > 1 and rec.duration > 0:
+        stride = max(1, round((len(times) - 1) / rec.duration / REPLAY_FPS))
+    frames = list(range(0, len(times), stride))
+    if frames and frames[-1] != len(times) - 1:
+        frames.append(len(times) - 1)  # always end on the final state
+    return {
+        "bodies": [rec.bodies[i] for i in keep],
+        "times": [round(float(times[f]), 4) for f in frames],
+        "poses": [[[round(float(v), 4) for v in rec.poses[f, i]] for i in keep] for f in frames],
+        "action_ends": list(saved.action_ends),
+    }
+
+
+def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int, step_kind: str,
+           step_index: int) -> dict[str, Any]:
+    """One step's replay: the recorded poses if the robot saved them, else the trace to replay step by step."""
+    from .sim.recordings import RecordingId, load_recording  # numpy only
+
+    with ctx.db.read() as s:
+        _study(s, study_id)
+        pid = _participant(s, study_id, participant_id).id
+        executions = _executions(aq.participant_events(s, participant_id=pid))
+    found = [x for x in executions if (x["task_index"], x["kind"], x["index"]) == (task_index, step_kind, step_index)]
+    if not found:
+        raise NotFound(f"participant {participant_id} has no {step_kind} {step_index} in task {task_index} "
+                       "(indices count from 0)")
+    execution = found[0]
+    if execution["trace"] is None:
+        raise NotFound(f"{step_kind} {step_index} of task {task_index} has not finished yet; replay it when it has")
+    layout = table_layout()
+    recording = None
+    try:
+        saved = load_recording(ctx.settings.data_dir, RecordingId(pid, task_index, step_kind, step_index))
+        recording = _recording_view(saved, tuple(layout["objects"]))
+    except FileNotFoundError:
+        pass  # the trace robot saves none: the dashboard replays the trace instead
+    return {"task_index": task_index, "kind": step_kind, "index": step_index,
+            "source": "trace" if recording is None else "recording", "objects": execution["objects"] or [],
+            "trace": execution["trace"], "acceptable": execution["acceptable"], "layout": layout,
+            "recording": recording}

@@ -1,0 +1,270 @@
+"""Experimenter analysis endpoints for the dashboard: live table, participant history, learning curves, replays."""
+
+from __future__ import annotations
+
+from typing import Annotated, Any, Literal
+
+from fastapi import APIRouter, Path, Query
+from pydantic import BaseModel, Field
+
+from .. import analysis
+from .deps import ContextDep, Experimenter
+from .schemas import error_responses
+
+router = APIRouter(prefix="/api/v1/studies", tags=["analysis"], dependencies=[Experimenter],
+                   responses=error_responses(401, 404, 422))
+
+Status = Literal["active", "idle", "done", "withdrawn"]
+StepKind = Literal["practice", "demonstration", "query", "test"]
+
+
+class StepOut(BaseModel):
+    """Where a teaching session is (kind done when the task is over)."""
+
+    kind: Literal["practice", "demonstration", "query", "test", "done"]
+    index: int
+    total: int
+
+
+class LiveStepOut(StepOut):
+    task_index: int
+
+
+class LiveRowOut(BaseModel):
+    participant_id: int
+    condition: str
+    stage: str
+    task_index: int
+    n_tasks: int
+    step: LiveStepOut | None
+    pilot: bool
+    prolific_pid: str | None
+    status: Status
+    dropout: bool = Field(description="not finished and inactive longer than dropout_minutes")
+    inactive_minutes: float
+    created_at: str | None
+    last_activity_at: str | None
+    finished_at: str | None
+    n_events: int
+    completion_code: str | None
+
+
+class LiveOut(BaseModel):
+    study_id: str
+    now: str
+    dropout_minutes: float
+    participants: list[LiveRowOut]
+
+
+class FormulaOut(BaseModel):
+    formula: str
+    description: str
+    p: float
+
+
+class RecordOut(BaseModel):
+    kind: StepKind
+    acceptable: bool | None
+    trace: list[list[str]]
+
+
+class BeliefStepOut(BaseModel):
+    """The belief after `step` learning records (0: the prior); similarity is null when the truth is unknown."""
+
+    step: int
+    record: RecordOut | None
+    entropy: float
+    similarity: float | None
+    map_similarity: float | None
+    map_formula: str
+    map_description: str
+    top: list[FormulaOut]
+
+
+class ExecutionOut(BaseModel):
+    """A practice trial or demonstration (by the participant), or a query or test (by the robot)."""
+
+    task_index: int
+    kind: StepKind
+    index: int
+    by: Literal["participant", "robot"]
+    status: Literal["running", "finished", "assessed"]
+    objects: list[str] | None
+    trace: list[list[str]] | None
+    acceptable: bool | None
+    p_acceptable: float | None
+    learning_step: int | None = Field(description="the belief step this execution produced, if the learner used it")
+    started_at: str | None
+    finished_at: str | None
+
+
+class TaskHistoryOut(BaseModel):
+    task_index: int
+    task: str
+    name: str | None
+    ground_truth: str | None
+    ground_truth_description: str | None
+    step: StepOut
+    steps: list[BeliefStepOut]
+    executions: list[ExecutionOut]
+
+
+class EventOut(BaseModel):
+    seq: int
+    created_at: str | None
+    kind: str
+    task_index: int | None
+    step_kind: str | None
+    step_index: int | None
+    payload: dict[str, Any]
+
+
+class AnswerOut(BaseModel):
+    item_id: str
+    text: str | None
+    kind: str | None
+    answer: int | str | None
+
+
+class ParticipantInfoOut(BaseModel):
+    participant_id: int
+    condition: str
+    stage: str
+    task_index: int
+    status: Status
+    pilot: bool
+    prolific_pid: str | None
+    created_at: str | None
+    last_activity_at: str | None
+    finished_at: str | None
+    n_events: int
+    completion_code: str | None
+    seed: int
+
+
+class HistoryOut(BaseModel):
+    study_id: str
+    participant: ParticipantInfoOut
+    tasks: list[TaskHistoryOut]
+    events: list[EventOut]
+    questionnaire: list[AnswerOut]
+
+
+class CurvePointOut(BaseModel):
+    step: int
+    n: int = Field(description="participants whose belief reached this step")
+    mean_entropy: float
+    n_similarity: int
+    median_similarity: float | None
+    q1_similarity: float | None
+    q3_similarity: float | None
+
+
+class ConditionCurveOut(BaseModel):
+    condition: str
+    points: list[CurvePointOut]
+
+
+class ParticipantCurveOut(BaseModel):
+    participant_id: int
+    condition: str
+    finished: bool
+    entropy: list[float]
+    similarity: list[float | None]
+
+
+class TaskCurvesOut(BaseModel):
+    task_index: int
+    task: str
+    name: str | None
+    has_ground_truth: bool
+    all: list[CurvePointOut]
+    conditions: list[ConditionCurveOut]
+    participants: list[ParticipantCurveOut]
+
+
+class CurvesOut(BaseModel):
+    study_id: str
+    finished_only: bool
+    tasks: list[TaskCurvesOut]
+
+
+@router.get("/{study_id}/live", response_model=LiveOut)
+def live(study_id: str, ctx: ContextDep,
+         dropout_minutes: Annotated[float | None, Query(gt=0, le=100_000, description=(
+             "flag unfinished participants inactive longer than this; default: the server's active_minutes"))] = None,
+         ) -> dict[str, Any]:
+    """Participants with their current step, live status and a dropout flag."""
+    return analysis.live_participants(ctx, study_id, dropout_minutes=dropout_minutes)
+
+
+@router.get("/{study_id}/participants/{participant_id}/history", response_model=HistoryOut)
+def history(study_id: str, participant_id: int, ctx: ContextDep) -> dict[str, Any]:
+    """Every event, every execution with its trace and verdict, and the belief after each learning step."""
+    return analysis.participant_history(ctx, study_id, participant_id)
+
+
+@router.get("/{study_id}/curves", response_model=CurvesOut)
+def curves(study_id: str, ctx: ContextDep,
+           finished_only: Annotated[bool, Query(description="only participants who completed the study")] = False,
+           ) -> dict[str, Any]:
+    """Learning curves per task and condition: median similarity and mean entropy after each learning step."""
+    return analysis.learning_curves(ctx, study_id, finished_only=finished_only)
+
+
+class TableOut(BaseModel):
+    name: str
+    x: float
+    y: float
+    half_x: float
+    half_y: float
+
+
+class PoseOut(BaseModel):
+    x: float
+    y: float
+    yaw: float = Field(description="radians about +z")
+
+
+class ObjectLayoutOut(BaseModel):
+    shape: Literal["disc", "bar"]
+    half_x: float
+    half_y: float
+    start: PoseOut
+    slot: PoseOut
+
+
+class LayoutOut(BaseModel):
+    """The scene from above, in metres in the world frame."""
+
+    tables: list[TableOut]
+    robot: dict[str, float]
+    objects: dict[str, ObjectLayoutOut]
+
+
+class RecordingOut(BaseModel):
+    bodies: list[str]
+    times: list[float]
+    poses: list[list[list[float]]] = Field(description="per frame, per body: x, y, z, qw, qx, qy, qz")
+    action_ends: list[float]
+
+
+class ReplayOut(BaseModel):
+    task_index: int
+    kind: StepKind
+    index: int
+    source: Literal["recording", "trace"]
+    objects: list[str]
+    trace: list[list[str]]
+    acceptable: bool | None
+    layout: LayoutOut
+    recording: RecordingOut | None
+
+
+@router.get("/{study_id}/participants/{participant_id}/replays/{task_index}/{step_kind}/{step_index}",
+            response_model=ReplayOut)
+def replay(study_id: str, participant_id: int, task_index: Annotated[int, Path(ge=0)], step_kind: StepKind,
+           step_index: Annotated[int, Path(ge=0)], ctx: ContextDep) -> dict[str, Any]:
+    """A step's replay: the robot's recorded poses when saved (MuJoCo robot), else its trace (indices from 0)."""
+    return analysis.replay(ctx, study_id, participant_id, task_index=task_index, step_kind=step_kind,
+                           step_index=step_index)

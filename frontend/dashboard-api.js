@@ -1,0 +1,101 @@
+// The one module that knows the experimenter API's URLs. Every call sends the experimenter token.
+
+const TOKEN_KEY = "tableteach.experimenterToken";
+const API = "/api/v1";
+
+/** The server refused a request: HTTP status and its message (what was wrong and what was expected). */
+export class ApiError extends Error {
+  constructor(status, detail) {
+    super(detail);
+    this.status = status;
+    this.detail = detail;
+  }
+}
+
+export function token() {
+  return sessionStorage.getItem(TOKEN_KEY);
+}
+
+export function setToken(value) {
+  sessionStorage.setItem(TOKEN_KEY, value);
+}
+
+export function clearToken() {
+  sessionStorage.removeItem(TOKEN_KEY);
+}
+
+async function request(method, path, { body, raw = false, bearer = token() } = {}) {
+  const headers = { Accept: raw ? "text/csv" : "application/json" };
+  if (bearer) headers.Authorization = `Bearer ${bearer}`;
+  if (body !== undefined) headers["Content-Type"] = "application/json";
+  let response;
+  try {
+    response = await fetch(path, { method, headers, body: body === undefined ? undefined : JSON.stringify(body) });
+  } catch (error) {
+    throw new ApiError(0, `the server could not be reached (${error.message}); check that it is running`);
+  }
+  if (!response.ok) {
+    let detail = `${response.status} ${response.statusText}`;
+    try {
+      const data = await response.json();
+      if (data && data.detail) detail = typeof data.detail === "string" ? data.detail : JSON.stringify(data.detail);
+    } catch {
+      // not JSON: keep the status line
+    }
+    throw new ApiError(response.status, detail);
+  }
+  return raw ? response : response.json();
+}
+
+const enc = encodeURIComponent;
+
+/** Check a token by listing the studies with it (nothing is stored unless it works). */
+export async function checkToken(candidate) {
+  return request("GET", `${API}/studies`, { bearer: candidate });
+}
+
+export const listStudies = () => request("GET", `${API}/studies`);
+export const getStudy = (id) => request("GET", `${API}/studies/${enc(id)}`);
+export const createStudy = (spec) => request("POST", `${API}/studies`, { body: spec });
+export const openStudy = (id) => request("POST", `${API}/studies/${enc(id)}/open`);
+export const closeStudy = (id) => request("POST", `${API}/studies/${enc(id)}/close`);
+
+export function live(id, dropoutMinutes) {
+  const query = dropoutMinutes ? `?dropout_minutes=${enc(dropoutMinutes)}` : "";
+  return request("GET", `${API}/studies/${enc(id)}/live${query}`);
+}
+
+export const history = (id, pid) => request("GET", `${API}/studies/${enc(id)}/participants/${enc(pid)}/history`);
+export const curves = (id, finishedOnly = false) =>
+  request("GET", `${API}/studies/${enc(id)}/curves${finishedOnly ? "?finished_only=true" : ""}`);
+
+export function replay(id, pid, { task_index, kind, index }) {
+  return request("GET", `${API}/studies/${enc(id)}/participants/${enc(pid)}/replays/${enc(task_index)}/${enc(kind)}/${enc(index)}`);
+}
+
+export const EXPORTS = ["participants", "events", "beliefs", "questionnaire"];
+
+/** One CSV export as {filename, blob} (fetched with the token: a plain link could not send it). */
+export async function exportCsv(id, name) {
+  const response = await request("GET", `${API}/studies/${enc(id)}/exports/${enc(name)}.csv`, { raw: true });
+  return { filename: `${id}-${name}.csv`, blob: await response.blob() };
+}
+
+/** The choices the server accepts for a new study, read from its OpenAPI schema. */
+export async function studyChoices() {
+  const schema = await request("GET", "/openapi.json", { bearer: null });
+  const props = schema.components.schemas.StudyIn.properties;
+  const item = schema.components.schemas.ItemIn.properties;
+  const task = schema.components.schemas.TaskIn.properties;
+  return {
+    priors: props.prior.enum, criteria: props.criterion.enum, conditions: props.conditions.items.enum,
+    assignments: props.assignment.enum, itemKinds: item.kind.enum, taskKeys: task.key.enum,
+    defaults: Object.fromEntries(Object.entries(props).map(([k, v]) => [k, v.default])),
+  };
+}
+
+/** The link to give participants (Prolific fills in the placeholders). */
+export function joinLink(id, { prolific = false } = {}) {
+  const base = `${location.origin}/study/${enc(id)}/join`;
+  return prolific ? `${base}?PROLIFIC_PID={{%PROLIFIC_PID%}}&STUDY_ID={{%STUDY_ID%}}&SESSION_ID={{%SESSION_ID%}}` : base;
+}

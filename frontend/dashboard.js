@@ -1,0 +1,706 @@
+// The experimenter dashboard: log in, studies, a study's live participants and curves, one participant's history.
+// Views are rebuilt from the API on every hash change (#/, #/new, #/study/{id}, #/study/{id}/p/{pid}).
+// All text from the server goes through textContent, never innerHTML.
+
+import * as api from "./dashboard-api.js";
+import { PALETTE, lineChart, quatYaw, tableView } from "./charts.js";
+
+const POLL_MS = 4000;
+const app = document.getElementById("app");
+const crumbs = document.getElementById("crumbs");
+const logoutButton = document.getElementById("logout");
+let cleanups = [];
+
+// ---------------------------------------------------------------- small DOM helpers
+
+/** An element with attributes ({class, onclick, ...}) and children (strings become text). */
+function h(tag, attrs = {}, ...children) {
+  const el = document.createElement(tag);
+  for (const [key, value] of Object.entries(attrs ?? {})) {
+    if (value === null || value === undefined || value === false) continue;
+    if (key.startsWith("on")) el.addEventListener(key.slice(2), value);
+    else if (key === "class") el.className = value;
+    else if (key in el && typeof value !== "string") el[key] = value;
+    else el.setAttribute(key, value === true ? "" : value);
+  }
+  for (const child of children.flat()) {
+    if (child === null || child === undefined || child === false) continue;
+    el.append(child instanceof Node ? child : document.createTextNode(String(child)));
+  }
+  return el;
+}
+
+const objectName = (name) => name.replaceAll("_", " ");
+function pct(p) {
+  if (p === null || p === undefined) return "–";
+  if (p < 0.001) return "<0.1%";
+  if (p > 0.999) return ">99.9%";
+  return `${(100 * p).toFixed(p < 0.01 || p > 0.99 ? 1 : 0)}%`;
+}
+const num = (v, digits = 2) => (v === null || v === undefined ? "–" : Number(v).toFixed(digits));
+const KIND_NAMES = { practice: "Practice", demonstration: "Demonstration", query: "Query", test: "Test", done: "Done" };
+
+function ago(iso) {
+  if (!iso) return "–";
+  const seconds = Math.max(0, (Date.now() - Date.parse(iso)) / 1000);
+  if (seconds < 60) return `${Math.round(seconds)} s ago`;
+  if (seconds < 3600) return `${Math.round(seconds / 60)} min ago`;
+  if (seconds < 86400) return `${(seconds / 3600).toFixed(1)} h ago`;
+  return `${Math.round(seconds / 86400)} d ago`;
+}
+
+/** Local time as YYYY-MM-DD HH:MM (compact and unambiguous). */
+function when(iso) {
+  if (!iso) return "–";
+  const d = new Date(iso);
+  const two = (n) => String(n).padStart(2, "0");
+  return `${d.getFullYear()}-${two(d.getMonth() + 1)}-${two(d.getDate())} ${two(d.getHours())}:${two(d.getMinutes())}`;
+}
+
+function pill(text, kind = text) {
+  return h("span", { class: `pill pill-${kind}` }, text);
+}
+
+function toast(message, kind = "info") {
+  const el = document.getElementById("toast");
+  el.textContent = message;
+  el.className = `toast-${kind}`;
+  el.hidden = false;
+  clearTimeout(toast.timer);
+  toast.timer = setTimeout(() => { el.hidden = true; }, 3500);
+}
+
+function errorBox(error) {
+  return h("div", { class: "error", role: "alert" }, error instanceof api.ApiError ? error.detail : String(error));
+}
+
+function setCrumbs(...items) {
+  crumbs.replaceChildren(...items.flatMap((item, i) => [...(i ? [h("span", { class: "sep" }, "/")] : []),
+    item.href ? h("a", { href: item.href }, item.text) : h("span", {}, item.text)]));
+}
+
+function every(ms, fn) {
+  let stopped = false;
+  let timer = null;
+  const tick = async () => {
+    if (stopped) return;
+    try { await fn(); } finally { if (!stopped) timer = setTimeout(tick, ms); }
+  };
+  cleanups.push(() => { stopped = true; clearTimeout(timer); });
+  return tick();
+}
+
+async function copyText(text, input) {
+  try {
+    await navigator.clipboard.writeText(text);
+  } catch {
+    // The clipboard API needs a secure context; selecting the text still lets the experimenter copy it.
+    input?.select();
+    document.execCommand?.("copy");
+  }
+  toast("Participant link copied");
+}
+
+// ---------------------------------------------------------------- routing
+
+async function route() {
+  for (const stop of cleanups) stop();
+  cleanups = [];
+  const token = api.token();
+  logoutButton.hidden = !token;
+  if (!token) return loginView();
+  const parts = location.hash.replace(/^#\/?/, "").split("/").filter(Boolean).map(decodeURIComponent);
+  try {
+    if (parts[0] === "new") return await newStudyView();
+    if (parts[0] === "study" && parts[2] === "p") return await participantView(parts[1], Number(parts[3]));
+    if (parts[0] === "study") return await studyView(parts[1]);
+    return await studiesView();
+  } catch (error) {
+    if (error instanceof api.ApiError && error.status === 401) {
+      api.clearToken();
+      return loginView("The server no longer accepts this token (it may have restarted with another one). Log in again.");
+    }
+    app.replaceChildren(errorBox(error), h("p", {}, h("a", { href: "#/" }, "Back to the studies")));
+  }
+}
+
+logoutButton.addEventListener("click", () => {
+  api.clearToken();
+  location.hash = "#/";
+  route();
+});
+window.addEventListener("hashchange", route);
+route();
+
+// ---------------------------------------------------------------- log in
+
+function loginView(message = null) {
+  setCrumbs();
+  const input = h("input", { type: "password", id: "token", name: "token", autocomplete: "current-password",
+    required: true, placeholder: "experimenter token" });
+  const status = h("div", { id: "login-message" }, message ? errorBox(message) : null);
+  const form = h("form", { class: "card login", onsubmit: async (event) => {
+    event.preventDefault();
+    status.replaceChildren(h("p", { class: "muted" }, "Checking…"));
+    try {
+      await api.checkToken(input.value.trim());
+      api.setToken(input.value.trim());
+      route();
+    } catch (error) {
+      const text = error instanceof api.ApiError && error.status === 401
+        ? `Login failed: the server refused this token (${error.detail}). The dashboard needs the experimenter token `
+          + "the server was started with; participant links and tokens do not give access."
+        : `Login failed: ${error.detail ?? error}`;
+      status.replaceChildren(errorBox(text));
+    }
+  } },
+  h("h1", {}, "Experimenter login"),
+  h("p", { class: "muted" }, "Enter the experimenter token (TABLETEACH_EXPERIMENTER_TOKEN, or the one `tableteach serve --dev` printed). "
+    + "It is kept in this tab only."),
+  h("label", { for: "token" }, "Token"), input,
+  h("button", { type: "submit", class: "primary" }, "Log in"),
+  status);
+  app.replaceChildren(form);
+  input.focus();
+}
+
+// ---------------------------------------------------------------- studies
+
+async function studiesView() {
+  setCrumbs({ text: "Studies" });
+  const studies = await api.listStudies();
+  const rows = studies.map((s) => h("tr", { class: "clickable", onclick: () => { location.hash = `#/study/${encodeURIComponent(s.id)}`; } },
+    h("td", {}, h("a", { href: `#/study/${encodeURIComponent(s.id)}` }, s.name), s.pilot ? pill("pilot") : null),
+    h("td", {}, h("code", {}, s.id)),
+    h("td", {}, pill(s.status)),
+    h("td", {}, s.tasks.map((t) => t.key).join(", ")),
+    h("td", {}, s.conditions.join(", "), h("span", { class: "muted" }, ` (${s.assignment})`)),
+    h("td", {}, when(s.created_at))));
+  app.replaceChildren(
+    h("div", { class: "page-head" }, h("h1", {}, "Studies"),
+      h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study")),
+    studies.length
+      ? h("table", { class: "data", id: "studies" },
+        h("thead", {}, h("tr", {}, ["Name", "Id", "Status", "Tasks", "Conditions", "Created"].map((c) => h("th", {}, c)))),
+        h("tbody", {}, rows))
+      : h("p", { class: "card muted" }, "No studies yet. Create one to get a participant link."));
+}
+
+// ---------------------------------------------------------------- new study
+
+async function newStudyView() {
+  setCrumbs({ text: "Studies", href: "#/" }, { text: "New study" });
+  const choices = await api.studyChoices();
+  const d = choices.defaults;
+  const select = (name, options, value) => h("select", { name, id: name },
+    options.map((o) => h("option", { value: o, selected: o === value }, o)));
+  const number = (name, label) => h("label", {}, label,
+    h("input", { type: "number", name, id: name, min: 0, max: 20, value: d[name], required: true }));
+
+  const tasks = h("div", { class: "rows", id: "tasks" });
+  const addTask = (key = "task1") => {
+    const truth = h("input", { name: "ground_truth", placeholder: "e.g. F(dinner_plate) & (!bowl U dinner_plate)", hidden: key !== "custom" });
+    const keySelect = select("task_key", choices.taskKeys, key);
+    keySelect.addEventListener("change", () => { truth.hidden = keySelect.value !== "custom"; });
+    tasks.append(h("div", { class: "row task-row" }, keySelect, truth,
+      h("button", { type: "button", class: "ghost", onclick: (e) => e.target.closest(".row").remove() }, "Remove")));
+  };
+  addTask("task1");
+
+  const items = h("div", { class: "rows", id: "items" });
+  const addItem = () => items.append(h("div", { class: "row item-row" },
+    h("input", { name: "item_id", placeholder: "id, e.g. learned", pattern: "[A-Za-z0-9_\\-]+", size: 12 }),
+    h("input", { name: "item_text", placeholder: "question text", class: "grow" }),
+    select("item_kind", choices.itemKinds, choices.itemKinds[0]),
+    h("label", { class: "inline" }, h("input", { type: "checkbox", name: "item_required", checked: true }), "required"),
+    h("button", { type: "button", class: "ghost", onclick: (e) => e.target.closest(".row").remove() }, "Remove")));
+
+  const message = h("div", { id: "create-message" });
+  const form = h("form", { class: "card form", id: "new-study-form", onsubmit: async (event) => {
+    event.preventDefault();
+    const f = new FormData(form);
+    const spec = {
+      name: f.get("name") || undefined,
+      tasks: [...tasks.querySelectorAll(".task-row")].map((row) => {
+        const key = row.querySelector("select").value;
+        const truth = row.querySelector("input").value.trim();
+        return key === "custom" ? { key, ground_truth: truth || null } : { key };
+      }),
+      conditions: choices.conditions.filter((c) => f.get(`condition_${c}`)),
+      assignment: f.get("assignment"),
+      n_practice: Number(f.get("n_practice")), n_demonstrations: Number(f.get("n_demonstrations")),
+      n_queries: Number(f.get("n_queries")), n_tests: Number(f.get("n_tests")),
+      prior: f.get("prior"), criterion: f.get("criterion"),
+      questionnaire: [...items.querySelectorAll(".item-row")].map((row) => ({
+        id: row.querySelector("[name=item_id]").value.trim(), text: row.querySelector("[name=item_text]").value,
+        kind: row.querySelector("[name=item_kind]").value, required: row.querySelector("[name=item_required]").checked,
+      })),
+      pilot: Boolean(f.get("pilot")),
+    };
+    for (const key of ["consent_text", "consent_version", "completion_url"]) {
+      const value = String(f.get(key) ?? "").trim();
+      if (value) spec[key] = value;
+    }
+    message.replaceChildren(h("p", { class: "muted" }, "Creating…"));
+    try {
+      const study = await api.createStudy(spec);
+      toast(`Study ${study.id} created (draft): open it to let participants join`);
+      location.hash = `#/study/${encodeURIComponent(study.id)}`;
+    } catch (error) {
+      message.replaceChildren(errorBox(error));
+    }
+  } },
+  h("h1", {}, "New study"),
+  h("label", {}, "Name", h("input", { name: "name", id: "name", value: "", placeholder: d.name, class: "grow" })),
+  h("fieldset", {}, h("legend", {}, "Tasks, in order"), tasks,
+    h("button", { type: "button", class: "ghost", onclick: () => addTask("task2") }, "Add a task")),
+  h("fieldset", {}, h("legend", {}, "Conditions (protocols) and assignment"),
+    h("div", { class: "row" }, choices.conditions.map((c) => h("label", { class: "inline" },
+      h("input", { type: "checkbox", name: `condition_${c}`, id: `condition_${c}`, checked: d.conditions.includes(c) }), c)),
+    h("label", {}, "Assignment", select("assignment", choices.assignments, d.assignment)))),
+  h("fieldset", {}, h("legend", {}, "Counts per task"),
+    h("div", { class: "row" }, number("n_practice", "Practice (first task only)"), number("n_demonstrations", "Demonstrations"),
+      number("n_queries", "Queries"), number("n_tests", "Tests"))),
+  h("fieldset", {}, h("legend", {}, "Learner"),
+    h("div", { class: "row" }, h("label", {}, "Prior", select("prior", choices.priors, d.prior)),
+      h("label", {}, "Planning criterion", select("criterion", choices.criteria, d.criterion)))),
+  h("fieldset", {}, h("legend", {}, "Questionnaire"), items,
+    h("button", { type: "button", class: "ghost", id: "add-item", onclick: addItem }, "Add an item")),
+  h("fieldset", {}, h("legend", {}, "Consent and completion"),
+    h("label", {}, "Consent text (empty: the default text)", h("textarea", { name: "consent_text", rows: 3 })),
+    h("div", { class: "row" }, h("label", {}, "Consent version", h("input", { name: "consent_version", placeholder: "1" })),
+      h("label", { class: "grow" }, "Completion redirect ({code} is replaced)",
+        h("input", { name: "completion_url", id: "completion_url", placeholder: "https://app.prolific.com/submissions/complete?cc={code}" }))),
+    h("label", { class: "inline" }, h("input", { type: "checkbox", name: "pilot" }), "Pilot study")),
+  h("div", { class: "row" }, h("button", { type: "submit", class: "primary", id: "create" }, "Create study"),
+    h("a", { href: "#/", class: "button ghost" }, "Cancel")),
+  message);
+  app.replaceChildren(form);
+}
+
+// ---------------------------------------------------------------- one study
+
+async function studyView(studyId) {
+  let study = await api.getStudy(studyId);
+  setCrumbs({ text: "Studies", href: "#/" }, { text: study.name });
+  const dropoutKey = `tableteach.dropoutMinutes.${studyId}`;
+  const head = h("div", { class: "page-head" });
+  const liveBox = h("div", { id: "live" });
+  const curvesBox = h("div", { id: "curves", class: "curves" }, h("p", { class: "muted" }, "Loading curves…"));
+  const finishedOnly = h("input", { type: "checkbox", id: "finished-only" });
+  const dropoutInput = h("input", { type: "number", id: "dropout-minutes", min: 1, step: 1, size: 5,
+    value: localStorage.getItem(dropoutKey) ?? "" });
+  const updated = h("span", { class: "muted small" });
+
+  const renderHead = () => {
+    const linkInput = h("input", { id: "join-link", readonly: true, value: api.joinLink(study.id), class: "grow" });
+    const prolific = h("input", { type: "checkbox", id: "prolific-link", onchange: () => {
+      linkInput.value = api.joinLink(study.id, { prolific: prolific.checked });
+    } });
+    const toggle = study.status === "open"
+      ? h("button", { id: "close-study", onclick: () => setStatus(api.closeStudy) }, "Close study")
+      : h("button", { id: "open-study", class: "primary", onclick: () => setStatus(api.openStudy) },
+        study.status === "draft" ? "Open study" : "Reopen study");
+    head.replaceChildren(
+      h("div", {}, h("h1", {}, study.name, " ", pill(study.status), study.pilot ? pill("pilot") : null),
+        h("p", { class: "muted" }, h("code", {}, study.id), " · ",
+          study.tasks.map((t) => t.name).join(" → "), " · conditions ", study.conditions.join(", "),
+          ` (${study.assignment})`, ` · ${study.n_practice} practice, ${study.n_demonstrations} demonstrations, `,
+          `${study.n_queries} queries, ${study.n_tests} tests · prior ${study.prior}, ${study.criterion}`)),
+      h("div", { class: "link-box" }, h("label", { for: "join-link" }, "Participant link"),
+        h("div", { class: "row" }, linkInput,
+          h("button", { id: "copy-link", onclick: () => copyText(linkInput.value, linkInput) }, "Copy"), toggle),
+        h("label", { class: "inline small" }, prolific, "with Prolific placeholders")));
+  };
+  const setStatus = async (call) => {
+    try {
+      study = await call(study.id);
+      toast(`Study is now ${study.status}`);
+      renderHead();
+    } catch (error) {
+      toast(error.detail ?? String(error), "error");
+    }
+  };
+  renderHead();
+
+  const downloads = h("div", { class: "row", id: "downloads" }, api.EXPORTS.map((name) => h("button", {
+    "data-export": name, onclick: () => download(study.id, name) }, `${name}.csv`)));
+
+  app.replaceChildren(head,
+    h("section", { class: "card" },
+      h("div", { class: "section-head" }, h("h2", {}, "Participants"),
+        h("div", { class: "row small" }, h("label", { class: "inline", for: "dropout-minutes" }, "Flag as dropout after"),
+          dropoutInput, h("span", {}, "min inactive"), updated)),
+      liveBox),
+    h("section", { class: "card" },
+      h("div", { class: "section-head" }, h("h2", {}, "Learning curves"),
+        h("label", { class: "inline small" }, finishedOnly, "completed participants only")),
+      h("p", { class: "muted small" }, "After each learning step (0: the prior; then each demonstration or assessed query): ",
+        "median expected similarity to the ground truth (band: interquartile range, thin lines: participants) and mean entropy of the belief."),
+      curvesBox),
+    h("section", { class: "card" }, h("h2", {}, "Downloads"),
+      h("p", { class: "muted small" }, "CSV files as described in docs/server.md (UTF-8, one header row)."), downloads));
+
+  let signature = null;
+  const refreshCurves = async () => {
+    try {
+      renderCurves(curvesBox, await api.curves(study.id, finishedOnly.checked), study);
+    } catch (error) {
+      curvesBox.replaceChildren(errorBox(error));
+    }
+  };
+  finishedOnly.addEventListener("change", refreshCurves);
+  const poll = async () => {
+    const minutes = Number(dropoutInput.value) > 0 ? Number(dropoutInput.value) : null;
+    const data = await api.live(study.id, minutes);
+    if (!dropoutInput.value) dropoutInput.placeholder = String(data.dropout_minutes);
+    renderLive(liveBox, data, study);
+    updated.textContent = `updated ${new Date().toLocaleTimeString()}`;
+    const now = data.participants.map((p) => `${p.participant_id}:${p.n_events}`).join(",");
+    if (now !== signature) {
+      signature = now;
+      await refreshCurves();
+    }
+  };
+  dropoutInput.addEventListener("change", () => {
+    if (Number(dropoutInput.value) > 0) localStorage.setItem(dropoutKey, dropoutInput.value);
+    else localStorage.removeItem(dropoutKey);
+    poll();
+  });
+  await every(POLL_MS, async () => {
+    try {
+      await poll();
+    } catch (error) {
+      if (error instanceof api.ApiError && error.status === 401) { route(); return; }
+      updated.textContent = `update failed: ${error.detail ?? error}`;
+    }
+  });
+}
+
+function progressText(p) {
+  if (p.stage === "task" && p.step) {
+    const step = p.step.kind === "done" ? "finishing" : `${p.step.kind} ${p.step.index + 1}/${p.step.total}`;
+    return `task ${p.step.task_index + 1}/${p.n_tasks} · ${step}`;
+  }
+  return p.stage;
+}
+
+function renderLive(box, data, study) {
+  const ps = data.participants;
+  const count = (pred) => ps.filter(pred).length;
+  const summary = h("div", { class: "stats" },
+    [["participants", ps.length], ["active", count((p) => p.status === "active")], ["idle", count((p) => p.status === "idle")],
+      ["done", count((p) => p.status === "done")], ["withdrawn", count((p) => p.status === "withdrawn")],
+      ["dropouts", count((p) => p.dropout)]].map(([label, n]) => h("div", { class: `stat stat-${label}` }, h("b", {}, n), label)));
+  if (!ps.length) {
+    box.replaceChildren(summary, h("p", { class: "muted" }, study.status === "open"
+      ? "No participants yet: share the link above." : "No participants yet. Open the study to let participants join."));
+    return;
+  }
+  const rows = ps.map((p) => {
+    const href = `#/study/${encodeURIComponent(study.id)}/p/${p.participant_id}`;
+    return h("tr", { class: `clickable ${p.dropout ? "dropout" : ""}`, "data-participant": p.participant_id,
+      onclick: (e) => { if (e.target.tagName !== "A") location.hash = href; } },
+    h("td", {}, h("a", { href }, `#${p.participant_id}`), p.pilot ? pill("pilot") : null),
+    h("td", {}, p.condition),
+    h("td", {}, progressText(p)),
+    h("td", {}, pill(p.status), p.dropout ? pill("dropout") : null),
+    h("td", { title: when(p.last_activity_at) }, ago(p.last_activity_at)),
+    h("td", { class: "num" }, p.n_events),
+    h("td", {}, p.prolific_pid ?? h("span", { class: "muted" }, "–")),
+    h("td", {}, p.completion_code ? h("code", {}, p.completion_code) : h("span", { class: "muted" }, "–")));
+  });
+  box.replaceChildren(summary, h("table", { class: "data", id: "participants" },
+    h("thead", {}, h("tr", {}, ["Participant", "Condition", "Step", "Status", "Last activity", "Events", "External id", "Completion"]
+      .map((c) => h("th", {}, c)))),
+    h("tbody", {}, rows)));
+}
+
+function renderCurves(box, data, study) {
+  const colors = Object.fromEntries(study.conditions.map((c, i) => [c, PALETTE[i % PALETTE.length]]));
+  const blocks = data.tasks.map((task) => {
+    if (!task.participants.length) return h("div", { class: "task-curves" }, h("h3", {}, task.name), h("p", { class: "muted" }, "No data yet."));
+    const simSeries = [];
+    const entSeries = [];
+    for (const p of task.participants) {
+      simSeries.push({ name: `#${p.participant_id}`, color: colors[p.condition], faint: true,
+        points: p.similarity.map((y, x) => ({ x, y })) });
+    }
+    for (const c of task.conditions) {
+      const label = `${c.condition} (n=${c.points[0]?.n ?? 0})`;
+      simSeries.push({ name: label, color: colors[c.condition],
+        band: c.points.map((pt) => ({ x: pt.step, lo: pt.q1_similarity, hi: pt.q3_similarity })),
+        points: c.points.map((pt) => ({ x: pt.step, y: pt.median_similarity,
+          label: `${c.condition}, step ${pt.step}: median similarity ${num(pt.median_similarity)} (n=${pt.n_similarity})` })) });
+      entSeries.push({ name: label, color: colors[c.condition],
+        points: c.points.map((pt) => ({ x: pt.step, y: pt.mean_entropy,
+          label: `${c.condition}, step ${pt.step}: mean entropy ${num(pt.mean_entropy)} nats (n=${pt.n})` })) });
+    }
+    const charts = [];
+    if (task.has_ground_truth) {
+      charts.push(lineChart(simSeries, { title: "Similarity to the ground truth (median)", xLabel: "learning step",
+        yLabel: "similarity", yMin: 0, yMax: 1, width: 520, height: 230 }));
+    }
+    charts.push(lineChart(entSeries, { title: "Belief entropy (mean)", xLabel: "learning step", yLabel: "entropy (nats)", yMin: 0,
+      width: 520, height: 230 }));
+    return h("div", { class: "task-curves", "data-task": task.task_index }, h("h3", {}, task.name),
+      task.has_ground_truth ? null : h("p", { class: "muted small" }, "Ground truth unknown: no similarity curve."),
+      h("div", { class: "chart-row" }, charts));
+  });
+  box.replaceChildren(...blocks);
+}
+
+async function download(studyId, name) {
+  try {
+    const { filename, blob } = await api.exportCsv(studyId, name);
+    const url = URL.createObjectURL(blob);
+    const a = h("a", { href: url, download: filename, hidden: true });
+    document.body.append(a);
+    a.click();
+    a.remove();
+    setTimeout(() => URL.revokeObjectURL(url), 10_000);
+  } catch (error) {
+    toast(`Download failed: ${error.detail ?? error}`, "error");
+  }
+}
+
+// ---------------------------------------------------------------- one participant
+
+async function participantView(studyId, participantId) {
+  const [study, data] = await Promise.all([api.getStudy(studyId), api.history(studyId, participantId)]);
+  setCrumbs({ text: "Studies", href: "#/" }, { text: study.name, href: `#/study/${encodeURIComponent(studyId)}` },
+    { text: `Participant #${participantId}` });
+  const p = data.participant;
+  const facts = [["Condition", p.condition], ["Stage", p.stage], ["Joined", when(p.created_at)],
+    ["Last activity", `${ago(p.last_activity_at)}`], ["Finished", when(p.finished_at)], ["Events", p.n_events],
+    ["External id", p.prolific_pid ?? "–"], ["Completion code", p.completion_code ?? "–"], ["Seed", p.seed]];
+  app.replaceChildren(
+    h("div", { class: "page-head" }, h("h1", {}, `Participant #${p.participant_id} `, pill(p.status), p.pilot ? pill("pilot") : null),
+      h("button", { onclick: () => route() }, "Refresh")),
+    h("dl", { class: "card facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, String(v))])),
+    ...data.tasks.map((task) => taskSection(task, studyId, participantId)),
+    data.tasks.length ? null : h("p", { class: "card muted" }, "This participant has not started a task yet."),
+    data.questionnaire.length ? h("section", { class: "card" }, h("h2", {}, "Questionnaire"),
+      h("table", { class: "data", id: "answers" }, h("tbody", {}, data.questionnaire.map((a) =>
+        h("tr", {}, h("td", {}, a.text ?? a.item_id), h("td", { class: "answer" }, String(a.answer))))))) : null,
+    h("details", { class: "card" }, h("summary", {}, `Event log (${data.events.length} events)`),
+      h("table", { class: "data small", id: "events" },
+        h("thead", {}, h("tr", {}, ["#", "Time", "Kind", "Task", "Step", "Details"].map((c) => h("th", {}, c)))),
+        h("tbody", {}, data.events.map((e) => h("tr", {}, h("td", {}, e.seq), h("td", {}, when(e.created_at)), h("td", {}, e.kind),
+          h("td", {}, e.task_index === null ? "" : e.task_index + 1),
+          h("td", {}, e.step_kind ? `${e.step_kind} ${e.step_index + 1}` : ""),
+          h("td", { class: "payload" }, eventDetails(e))))))));
+}
+
+function eventDetails(e) {
+  const pl = e.payload;
+  if (e.kind === "place") return `placed the ${objectName(pl.object)}`;
+  if (e.kind === "assessment") return pl.acceptable === null ? "no verdict" : pl.acceptable ? "acceptable" : "unacceptable";
+  if (e.kind === "execution_started") return `robot: ${(pl.events ?? []).map(objectName).join(", ")}`;
+  if (e.kind === "task_started") return `${pl.task}, ${pl.protocol}, seed ${pl.seed}`;
+  if (e.kind === "completed") return `code ${pl.completion_code}`;
+  return "";
+}
+
+function taskSection(task, studyId, participantId) {
+  const steps = task.steps;
+  const byStep = Object.fromEntries(task.executions.filter((x) => x.learning_step).map((x) => [x.learning_step, x]));
+  const stepName = (k) => (k === 0 ? "the prior" : `${KIND_NAMES[byStep[k]?.kind ?? steps[k].record.kind].toLowerCase()} ${(byStep[k]?.index ?? 0) + 1}`);
+  const size = { width: 330, height: 190 };
+  const charts = [lineChart([{ name: "entropy", color: PALETTE[0],
+    points: steps.map((s) => ({ x: s.step, y: s.entropy, label: `after ${stepName(s.step)}: ${num(s.entropy)} nats` })) }],
+  { title: "Belief entropy (nats)", xLabel: "learning step", yMin: 0, legend: false, ...size })];
+  if (task.ground_truth) {
+    charts.push(lineChart([
+      { name: "expected", color: PALETTE[2], points: steps.map((s) => ({ x: s.step, y: s.similarity, label: `after ${stepName(s.step)}: expected ${num(s.similarity)}` })) },
+      { name: "MAP", color: PALETTE[1], dashed: true, points: steps.map((s) => ({ x: s.step, y: s.map_similarity, label: `after ${stepName(s.step)}: MAP ${num(s.map_similarity)}` })) },
+    ], { title: "Similarity to the ground truth", xLabel: "learning step", yMin: 0, yMax: 1, ...size }));
+  }
+
+  const inspector = h("div", { class: "inspector" });
+  const replayBox = h("div", { class: "replay-box" });
+  const beliefBox = h("div", {});
+  const stepButtons = h("div", { class: "segmented", role: "tablist", "aria-label": "learning step" });
+  inspector.append(replayBox, h("div", { class: "inspector-head" }, h("h3", {}, "Belief after step"), stepButtons), beliefBox);
+  const rows = [];
+  const select = (k) => {
+    for (const b of stepButtons.children) b.classList.toggle("selected", Number(b.dataset.step) === k);
+    for (const r of rows) r.classList.toggle("selected", Number(r.dataset.learningStep) === k);
+    beliefBox.replaceChildren(beliefBlock(steps[k], task, stepName(k)));
+  };
+  steps.forEach((s) => stepButtons.append(h("button", { type: "button", class: "small", "data-step": s.step,
+    title: `belief after ${stepName(s.step)}`, onclick: () => select(s.step) }, String(s.step))));
+
+  const openReplay = async (x) => {
+    replayBox.replaceChildren(h("p", { class: "muted" }, "Loading replay…"));
+    try {
+      const data = await api.replay(studyId, participantId, x);
+      replayBox.replaceChildren(h("div", { class: "inspector-head" },
+        h("h3", {}, `Replay: ${KIND_NAMES[x.kind].toLowerCase()}${x.kind === "practice" ? "" : ` ${x.index + 1}`}`),
+        h("button", { type: "button", class: "small ghost", onclick: () => replayBox.replaceChildren() }, "Close")),
+      replayPlayer(data));
+    } catch (error) {
+      replayBox.replaceChildren(errorBox(error));
+    }
+  };
+  for (const x of task.executions) {
+    const row = h("tr", { class: `exec ${x.kind} ${x.learning_step ? "clickable" : ""}`, "data-kind": x.kind, "data-index": x.index,
+      "data-learning-step": x.learning_step ?? "", onclick: (event) => {
+        if (x.learning_step && event.target.tagName !== "BUTTON") select(x.learning_step);
+      } },
+    h("td", { title: `by the ${x.by}` }, h("span", { class: `dot-kind ${x.kind}` }), h("b", {}, KIND_NAMES[x.kind]),
+      x.kind === "practice" ? "" : ` ${x.index + 1}`),
+    h("td", {}, traceChips(x.trace)),
+    h("td", {}, verdict(x)),
+    h("td", { class: "num small", title: "the robot's probability that its execution is acceptable, before the verdict" },
+      x.p_acceptable === null ? "" : pct(x.p_acceptable)),
+    h("td", { class: "num muted small" }, x.learning_step ?? "–"),
+    h("td", {}, h("button", { type: "button", class: "small", disabled: !x.trace, "data-replay": `${x.kind}-${x.index}`,
+      onclick: () => { if (x.learning_step) select(x.learning_step); openReplay(x); } }, "Replay")));
+    rows.push(row);
+  }
+  select(steps.length - 1);
+
+  const current = task.step.kind === "done" ? pill("finished", "done") : pill(`at ${task.step.kind} ${task.step.index + 1} of ${task.step.total}`, "active");
+  return h("section", { class: "card task", "data-task": task.task_index },
+    h("div", { class: "section-head" }, h("h2", {}, task.name ?? `Task ${task.task_index + 1}`, current)),
+    task.ground_truth
+      ? h("p", { class: "truth small" }, h("b", {}, "Ground truth "), h("code", { class: "formula" }, task.ground_truth),
+        h("span", { class: "muted" }, ` — ${task.ground_truth_description}`))
+      : h("p", { class: "muted small" }, "Ground truth unknown: no similarity."),
+    h("div", { class: "task-grid" },
+      h("div", {}, h("div", { class: "chart-row" }, charts),
+        h("table", { class: "data executions" },
+          h("thead", {}, h("tr", {}, ["Step", "Trace", "Label", "P(acc.)", "Belief", ""].map((c) => h("th", {}, c)))),
+          h("tbody", {}, rows))),
+      inspector));
+}
+
+function traceChips(trace) {
+  if (!trace) return h("span", { class: "muted small" }, "no trace yet");
+  const out = [];
+  for (let k = 1; k < trace.length; k++) {
+    const added = trace[k].filter((o) => !trace[k - 1].includes(o));
+    const removed = trace[k - 1].filter((o) => !trace[k].includes(o));
+    const text = [...added.map(objectName), ...removed.map((o) => `−${objectName(o)}`)].join(" + ") || "(no change)";
+    out.push(h("span", { class: "chip" }, text));
+  }
+  return h("span", { class: "trace" }, out.length ? out : h("span", { class: "muted small" }, "nothing placed"));
+}
+
+function verdict(x) {
+  if (x.kind === "practice") return pill("practice", "neutral");
+  if (x.kind === "demonstration") return pill(x.status === "finished" ? "acceptable" : "in progress", x.status === "finished" ? "good" : "neutral");
+  if (x.status !== "assessed") return pill(x.status === "running" ? "in progress" : "awaiting label", "neutral");
+  if (x.acceptable === null) return pill("no label", "neutral");
+  return x.acceptable ? pill("acceptable", "good") : pill("unacceptable", "bad");
+}
+
+function beliefBlock(step, task, name) {
+  const bar = (p) => {
+    const el = h("span", { class: "bar" });
+    el.style.width = `${Math.max(1, 100 * p).toFixed(1)}%`; // CSSOM, allowed by the page's style-src policy
+    return el;
+  };
+  return h("div", { class: "belief", "data-step": step.step },
+    h("p", { class: "muted small" }, `After ${name}`),
+    h("div", { class: "belief-stats" },
+      h("div", {}, h("b", {}, num(step.entropy)), h("span", {}, "entropy (nats)")),
+      task.ground_truth ? h("div", {}, h("b", {}, num(step.similarity)), h("span", {}, "expected similarity")) : null,
+      task.ground_truth ? h("div", {}, h("b", {}, num(step.map_similarity)), h("span", {}, "MAP similarity")) : null),
+    h("table", { class: "top" }, h("tbody", {}, step.top.map((f, i) => h("tr", {},
+      h("td", { class: "bar-cell" }, bar(f.p), h("span", { class: "bar-label" }, pct(f.p))),
+      h("td", {}, h("div", { class: "description" }, f.description), h("div", { class: "formula" }, f.formula)))))));
+}
+
+// ---------------------------------------------------------------- replay
+
+/** Frames of a replay: [{t, poses}] from the recorded body poses, or built from the trace step by step. */
+function replayFrames(data) {
+  const layout = data.layout;
+  if (data.source === "recording") {
+    const { bodies, times, poses } = data.recording;
+    return times.map((t, f) => {
+      const frame = {};
+      bodies.forEach((body, b) => {
+        const [x, y, z, qw, qx, qy, qz] = poses[f][b];
+        if (body in layout.objects) frame[body] = { x, y, z, yaw: quatYaw(qw, qx, qy, qz) };
+        else if (body === "hand") frame.hand = { x, y };
+        else if (body === "forearm") frame.elbow = { x, y };
+      });
+      return { t: t - times[0], poses: frame };
+    });
+  }
+  // Trace only (e.g. the trace robot): each new label moves its object from Table A to its slot in 1 s.
+  const names = Object.keys(layout.objects);
+  const rest = {};
+  for (const n of names) rest[n] = { ...layout.objects[n].start, z: 0 };
+  const frames = [{ t: 0, poses: { ...rest } }];
+  let t = 0;
+  let height = 0;
+  const state = { ...rest };
+  const trace = data.trace ?? [];
+  for (let k = 1; k < trace.length; k++) {
+    for (const obj of trace[k].filter((o) => !trace[k - 1].includes(o) && o in layout.objects)) {
+      const from = state[obj];
+      const to = { ...layout.objects[obj].slot, z: ++height, placed: true };
+      for (let i = 1; i <= 24; i++) {
+        const a = i / 24;
+        const ease = a * a * (3 - 2 * a);
+        const pose = { x: from.x + (to.x - from.x) * ease, y: from.y + (to.y - from.y) * ease,
+          yaw: from.yaw + (to.yaw - from.yaw) * ease, z: 100 + height, placed: i === 24 };
+        state[obj] = i === 24 ? to : pose;
+        frames.push({ t: t + a, poses: { ...state, hand: { x: pose.x, y: pose.y } }, step: k });
+      }
+      t += 1.25;
+      frames.push({ t, poses: { ...state }, step: k });
+    }
+  }
+  return frames;
+}
+
+function replayPlayer(data) {
+  const view = tableView(data.layout, { width: 460, height: 300 });
+  const frames = replayFrames(data);
+  const duration = frames.at(-1).t || 1;
+  const slider = h("input", { type: "range", min: 0, max: 1000, value: 0, class: "grow", "aria-label": "replay position" });
+  const clock = h("span", { class: "muted small mono" });
+  const speed = h("select", { "aria-label": "replay speed" }, [0.5, 1, 2, 4].map((s) => h("option", { value: s, selected: s === 1 }, `${s}×`)));
+  const play = h("button", { class: "small" }, "Play");
+  let position = 0;
+  let playing = false;
+  let last = null;
+
+  const show = (time) => {
+    position = Math.min(Math.max(time, 0), duration);
+    let lo = 0;
+    let hi = frames.length - 1;
+    while (lo < hi) { const mid = (lo + hi + 1) >> 1; if (frames[mid].t <= position) lo = mid; else hi = mid - 1; }
+    view.draw(frames[lo].poses);
+    slider.value = String(Math.round((1000 * position) / duration));
+    clock.textContent = `${position.toFixed(1)} / ${duration.toFixed(1)} s`;
+  };
+  const tick = (now) => {
+    if (!playing || !view.element.isConnected) { playing = false; play.textContent = "Play"; return; }
+    if (last !== null) show(position + ((now - last) / 1000) * Number(speed.value));
+    last = now;
+    if (position >= duration) { playing = false; play.textContent = "Replay"; return; }
+    requestAnimationFrame(tick);
+  };
+  play.addEventListener("click", () => {
+    if (playing) { playing = false; play.textContent = "Play"; return; }
+    if (position >= duration) show(0);
+    playing = true;
+    last = null;
+    play.textContent = "Pause";
+    requestAnimationFrame(tick);
+  });
+  slider.addEventListener("input", () => { playing = false; play.textContent = "Play"; show((Number(slider.value) / 1000) * duration); });
+  show(0);
+  const source = data.source === "recording"
+    ? "Recorded object poses from the simulation."
+    : "No recording of this execution (trace robot): the trace is replayed step by step.";
+  return h("div", { class: "replay", "data-source": data.source }, view.element,
+    h("div", { class: "row controls" }, play, slider, speed, clock),
+    h("p", { class: "muted small" }, source, " Objects: ", (data.objects ?? []).map(objectName).join(", ") || "none"));
+}
