@@ -1,0 +1,92 @@
+"""One function per user action: load state from the database, call the learning core, move the robot, commit once.
+
+Participants go through consent -> instructions -> one teaching session per task (practice,
+demonstrations, queries, tests; core.session enforces their order) -> questionnaire -> done. Every
+action appends to the participant's event log in the same transaction that changes their state, so
+an acknowledged action is never lost. A client-supplied idempotency key makes retries harmless.
+Modules: context (shared context), studies, state (the state view and action machinery), teaching,
+participants, viewing (the 3D view and the one-tab rule), monitoring, exports.
+"""
+
+from .context import TAB_LEASE_SECONDS, Context, TabLeases, app_version
+from .exports import (
+    BELIEF_COLUMNS,
+    EVENT_COLUMNS,
+    EXPORT_COLUMNS,
+    EXPORTS,
+    PARTICIPANT_COLUMNS,
+    QUESTIONNAIRE_COLUMNS,
+    export_rows,
+)
+from .monitoring import belief_summary, list_participants
+from .participants import answer_questionnaire, finish_instructions, give_consent, join_study
+from .state import STAGES, Expect, participant_state
+from .studies import (
+    ASSIGNMENTS,
+    DEFAULT_CONSENT,
+    DEMO_QUESTIONNAIRE,
+    DEMO_STUDY_ID,
+    ITEM_KINDS,
+    STUDY_STATUSES,
+    TASK_FORMULAS,
+    TASK_INSTRUCTIONS,
+    TASK_KEYS,
+    TASK_NAMES,
+    close_study,
+    create_study,
+    get_study,
+    list_studies,
+    open_study,
+    seed_demo_study,
+    study_view,
+)
+from .teaching import assess_execution, finish_demonstration, place_object, start_execution
+from .viewing import claim_tab, open_viewer, release_tab, robot_activity
+
+__all__ = [
+    "ASSIGNMENTS",
+    "BELIEF_COLUMNS",
+    "Context",
+    "DEFAULT_CONSENT",
+    "DEMO_QUESTIONNAIRE",
+    "DEMO_STUDY_ID",
+    "EVENT_COLUMNS",
+    "EXPORTS",
+    "EXPORT_COLUMNS",
+    "Expect",
+    "ITEM_KINDS",
+    "PARTICIPANT_COLUMNS",
+    "QUESTIONNAIRE_COLUMNS",
+    "STAGES",
+    "STUDY_STATUSES",
+    "TAB_LEASE_SECONDS",
+    "TASK_FORMULAS",
+    "TASK_INSTRUCTIONS",
+    "TASK_KEYS",
+    "TASK_NAMES",
+    "TabLeases",
+    "answer_questionnaire",
+    "app_version",
+    "assess_execution",
+    "belief_summary",
+    "claim_tab",
+    "close_study",
+    "create_study",
+    "export_rows",
+    "finish_demonstration",
+    "finish_instructions",
+    "get_study",
+    "give_consent",
+    "join_study",
+    "list_participants",
+    "list_studies",
+    "open_study",
+    "open_viewer",
+    "participant_state",
+    "place_object",
+    "release_tab",
+    "robot_activity",
+    "seed_demo_study",
+    "start_execution",
+    "study_view",
+]

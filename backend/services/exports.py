@@ -1,0 +1,108 @@
+"""Per-study CSV exports: participants, events, beliefs and questionnaire answers."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterator
+from typing import Any
+
+from ..core import session as core
+from ..core.domain import get_domain
+from ..db import repository as repo
+from ..db.tables import StudyRow
+from ..errors import NotFound
+from .context import Context, iso
+from .monitoring import truth_mask
+from .studies import study_row
+
+EXPORTS = ("participants", "events", "beliefs", "questionnaire")
+
+
+PARTICIPANT_COLUMNS = [
+    "participant_id", "study_id", "condition", "pilot", "stage", "task_index", "prolific_pid", "external_study_id",
+    "external_session_id", "consent_at", "consent_version", "completion_code", "created_at", "last_activity_at",
+    "finished_at", "n_events", "seed",
+]
+
+
+EVENT_COLUMNS = [
+    "participant_id", "seq", "created_at", "kind", "task_index", "task", "step_kind", "step_index", "object",
+    "labels", "robot_events", "trace", "acceptable", "p_acceptable", "client_event_id", "app_version", "payload",
+]
+
+
+BELIEF_COLUMNS = [
+    "participant_id", "condition", "task_index", "task", "step", "record_kind", "acceptable", "trace", "entropy",
+    "map_formula", "map_description", "similarity", "map_similarity",
+] + [f"top{i}_{part}" for i in range(1, 6) for part in ("formula", "p")]
+
+
+QUESTIONNAIRE_COLUMNS = ["participant_id", "condition", "item_id", "item_kind", "item_text", "answer", "answered_at"]
+
+
+EXPORT_COLUMNS = {"participants": PARTICIPANT_COLUMNS, "events": EVENT_COLUMNS, "beliefs": BELIEF_COLUMNS,
+                  "questionnaire": QUESTIONNAIRE_COLUMNS}
+
+
+def _json(value: Any) -> str | None:
+    return None if value is None else json.dumps(value, separators=(",", ":"))
+
+
+def export_rows(ctx: Context, study_id: str, name: str) -> Iterator[list[Any]]:
+    """The rows of one export, header first; checks the study before the first row is produced."""
+    if name not in EXPORTS:
+        raise NotFound(f"no export named {name!r}; expected one of {', '.join(EXPORTS)}")
+    with ctx.db.read() as s:
+        study_row(s, study_id)
+    return _export_rows(ctx, study_id, name)
+
+
+def _export_rows(ctx: Context, study_id: str, name: str) -> Iterator[list[Any]]:
+    yield EXPORT_COLUMNS[name]
+    with ctx.db.read() as s:
+        study = study_row(s, study_id)
+        if name == "participants":
+            for p in repo.list_participants(s, study_id=study_id):
+                yield [p.id, p.study_id, p.condition, p.pilot, p.stage, p.task_index, p.prolific_pid,
+                       p.external_study_id, p.external_session_id, iso(p.consent_at), p.consent_version,
+                       p.completion_code, iso(p.created_at), iso(p.last_activity_at), iso(p.finished_at),
+                       p.n_events, p.seed]
+        elif name == "events":
+            for e in repo.iter_study_events(s, study_id=study_id):
+                pl = e.payload or {}
+                task = None if e.task_index is None else study.tasks[e.task_index]["key"]
+                yield [e.participant_id, e.seq, iso(e.created_at), e.kind, e.task_index, task, e.step_kind,
+                       e.step_index, pl.get("object"), _json(pl.get("labels")), _json(pl.get("events")),
+                       _json(pl.get("trace")), pl.get("acceptable"), pl.get("p_acceptable"), e.client_event_id,
+                       e.app_version, _json(pl)]
+        elif name == "beliefs":
+            yield from _belief_rows(s, study)
+        else:
+            items = {item["id"]: item for item in study.questionnaire}
+            conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study_id)}
+            for e in repo.iter_study_events_of_kind(s, study_id=study_id, kind="questionnaire"):
+                for item_id, answer in (e.payload.get("answers") or {}).items():
+                    item = items.get(item_id, {})
+                    yield [e.participant_id, conditions.get(e.participant_id), item_id, item.get("kind"),
+                           item.get("text"), answer, iso(e.created_at)]
+
+
+def _belief_rows(s: Any, study: StudyRow) -> Iterator[list[Any]]:
+    space = get_domain("dinner").clause_space
+    conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study.id)}
+    for ts in repo.iter_study_task_sessions(s, study_id=study.id):
+        state = core.SessionState.from_json(ts.state_json)
+        truth = truth_mask(study.tasks[ts.task_index])
+        records: list[core.Record | None] = [None, *state.learning_records]
+        for step, (record, b) in enumerate(zip(records, core.beliefs_by_step(state))):
+            top = b.top(5)
+            cells: list[Any] = []
+            for i in range(5):
+                cells += [space.text_of(top[i][0]), top[i][1]] if i < len(top) else [None, None]
+            yield [ts.participant_id, conditions.get(ts.participant_id), ts.task_index,
+                   study.tasks[ts.task_index]["key"], step, None if record is None else record.kind,
+                   None if record is None else record.acceptable,
+                   None if record is None else _json([sorted(x) for x in record.trace]),
+                   b.entropy, space.text_of(b.map_mask), space.describe(b.map_mask),
+                   None if truth is None else b.similarity(truth),
+                   None if truth is None else b.map_similarity(truth), *cells]

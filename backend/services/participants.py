@@ -1,0 +1,124 @@
+"""Joining a study, consent, instructions and the questionnaire."""
+
+from __future__ import annotations
+
+import secrets
+from datetime import timedelta
+from typing import Any
+
+from ..config import Settings
+from ..db import repository as repo
+from ..db.tables import StudyRow, utcnow
+from ..errors import Conflict, InvalidInput, NotFound
+from .context import Context, app_version, commit
+from .state import Action, act, require_stage, state_view
+from .studies import ITEM_KINDS
+from .teaching import begin_task, complete
+
+
+def _choose_condition(s: Any, study: StudyRow, settings: Settings) -> str:
+    """Random, or balanced over participants who finished or were active recently (ties at random)."""
+    rng = secrets.SystemRandom()
+    if study.assignment == "random" or len(study.conditions) == 1:
+        return rng.choice(study.conditions)
+    since = utcnow() - timedelta(minutes=settings.active_minutes)
+    counts = repo.count_by_condition(s, study_id=study.id, active_since=since)
+    fewest = min(counts.get(c, 0) for c in study.conditions)
+    return rng.choice([c for c in study.conditions if counts.get(c, 0) == fewest])
+
+
+def join_study(
+    ctx: Context, study_id: str, *, prolific_pid: str | None = None, external_study_id: str | None = None,
+    external_session_id: str | None = None,
+) -> tuple[dict[str, Any], bool]:
+    """A new participant (or the one who joined before with this external id) and whether it is new."""
+    with ctx.db.write() as s:
+        study = repo.get_study(s, study_id=study_id, for_update=True)
+        if study is None:
+            raise NotFound(f"no study with id {study_id!r}")
+        if prolific_pid:
+            existing = repo.find_participant_by_external_id(s, study_id=study_id, prolific_pid=prolific_pid)
+            if existing is not None:
+                return state_view(s, existing, study), False
+        if study.status != "open":
+            raise Conflict(f"study {study_id!r} is {study.status}; participants can join only while it is open")
+        participant = repo.add_participant(s, values={
+            "token": secrets.token_urlsafe(24),
+            "study_id": study.id,
+            "prolific_pid": prolific_pid or None,
+            "external_study_id": external_study_id or None,
+            "external_session_id": external_session_id or None,
+            "condition": _choose_condition(s, study, ctx.settings),
+            "seed": secrets.randbelow(2**31 - 1000),
+            "pilot": study.pilot,
+            "stage": "consent",
+            "task_index": 0,
+            "n_events": 0,
+        })
+        repo.append_event(s, participant=participant, kind="joined", app_version=app_version(), payload={
+            "condition": participant.condition, "prolific_pid": prolific_pid, "external_study_id": external_study_id,
+            "external_session_id": external_session_id,
+        })
+        commit(s)
+        return state_view(s, participant, study), True
+
+
+def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str, key: str | None = None) -> dict[str, Any]:
+    """Record consent (or its refusal, which withdraws the participant)."""
+    def run(a: Action) -> None:
+        require_stage(a, "consent")
+        if consent_version != a.study.consent_version:
+            raise Conflict(f"consent text version {consent_version!r} is not the current one "
+                           f"({a.study.consent_version!r}); reload the page and read it again")
+        now = utcnow()
+        a.log("consent", {"agree": agree, "consent_version": consent_version, "at": now.isoformat()})
+        if agree:
+            a.participant.consent_at = now
+            a.participant.consent_version = consent_version
+            a.participant.stage = "instructions"
+        else:
+            a.participant.stage = "withdrawn"
+            a.participant.finished_at = now
+
+    return act(ctx, token, "consent", {"agree": agree, "version": consent_version}, key, run)
+
+
+def finish_instructions(ctx: Context, token: str, *, key: str | None = None) -> dict[str, Any]:
+    """The participant has read the instructions: the first task begins."""
+    def run(a: Action) -> None:
+        require_stage(a, "instructions")
+        a.log("instructions_read", {})
+        begin_task(a, 0)
+
+    return act(ctx, token, "instructions", {}, key, run)
+
+
+def _check_answer(item: dict[str, Any], value: Any) -> Any:
+    bounds = ITEM_KINDS[item["kind"]]
+    if bounds is None:
+        if not isinstance(value, str) or len(value) > 5000:
+            raise InvalidInput(f"answer to {item['id']!r} must be text of at most 5000 characters")
+        return value
+    low, high = bounds
+    if not isinstance(value, int) or isinstance(value, bool) or not low <= value <= high:
+        raise InvalidInput(f"answer to {item['id']!r} must be a whole number from {low} to {high}, got {value!r}")
+    return value
+
+
+def answer_questionnaire(ctx: Context, token: str, *, answers: dict[str, Any], key: str | None = None) -> dict[str, Any]:
+    """Store the questionnaire's answers; the participant is then done and gets a completion code."""
+    def run(a: Action) -> None:
+        require_stage(a, "questionnaire")
+        items = {item["id"]: item for item in a.study.questionnaire}
+        unknown = sorted(set(answers) - set(items))
+        if unknown:
+            raise InvalidInput(f"unknown questionnaire item(s) {', '.join(map(repr, unknown))}; "
+                               f"expected some of {', '.join(items)}")
+        missing = [i for i, item in items.items() if item["required"] and answers.get(i) in (None, "")]
+        if missing:
+            raise InvalidInput(f"required questionnaire item(s) not answered: {', '.join(missing)}")
+        clean = {i: _check_answer(items[i], v) for i, v in answers.items() if v is not None}
+        a.log("questionnaire", {"answers": clean})
+        complete(a)
+
+    return act(ctx, token, "questionnaire", {"answers": answers}, key, run)

@@ -1,0 +1,250 @@
+"""A participant's state as the API shows it, and the action machinery (idempotency, step guards, one commit)."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import lru_cache
+from typing import Any
+
+from ..core import session as core
+from ..core.domain import DINNER_OBJECTS, get_domain
+from ..db import repository as repo
+from ..db.tables import EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
+from ..errors import Conflict, NotAuthenticated
+from ..sim.recordings import RecordingId
+from .context import Context, app_version, commit, iso
+
+log = logging.getLogger(__name__)
+
+
+STAGES = ("consent", "instructions", "task", "questionnaire", "done", "withdrawn")
+
+
+def robot_key(participant: ParticipantRow, task_index: int) -> str:
+    return f"{participant.id}/{task_index}"
+
+
+def save_recording(ctx: Context, participant: ParticipantRow, task_index: int, kind: str, index: int) -> None:
+    """Ask the robot to keep this step's motion; a failure is logged, never shown to the participant."""
+    try:
+        ctx.robot.save_recording(robot_key(participant, task_index),
+                                 RecordingId(participant.id, task_index, kind, index).name)
+    except Exception:
+        log.exception("could not save the recording of participant %s task %s %s %s", participant.id, task_index,
+                      kind, index)
+
+
+def session_config(study: StudyRow, participant: ParticipantRow, task_index: int) -> core.SessionConfig:
+    return core.SessionConfig(
+        task="dinner", prior=study.prior, protocol=participant.condition,
+        # The practice trial is there to learn the interface, so only the first task has one.
+        n_practice=study.n_practice if task_index == 0 else 0,
+        n_demonstrations=study.n_demonstrations, n_queries=study.n_queries, n_tests=study.n_tests,
+        criterion=study.criterion, seed=(participant.seed + task_index) % (2**31),
+    )
+
+
+def current_task(s: Any, participant: ParticipantRow) -> TaskSessionRow | None:
+    if participant.stage != "task":
+        return None
+    return repo.get_task_session(s, participant_id=participant.id, task_index=participant.task_index)
+
+
+def sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskSessionRow) -> bool:
+    """Ask the robot how a running execution is going; True if it has just finished (state changed)."""
+    execution = ts.execution
+    if execution is None or execution["status"] != "running":
+        return False
+    key = robot_key(participant, ts.task_index)
+    progress = ctx.robot.progress(key)
+    if progress is None or list(progress.events) != execution["events"]:
+        # The robot forgot it (server restart): it starts the same execution again.
+        log.info("robot lost execution %s; restarting it", key)
+        ctx.robot.execute(key, execution["events"])
+        progress = ctx.robot.progress(key)
+    if progress is None or not progress.finished:
+        return False
+    trace = [sorted(labels) for labels in progress.trace]
+    ts.execution = {**execution, "status": "finished", "trace": trace, "finished_at": utcnow().isoformat()}
+    save_recording(ctx, participant, ts.task_index, execution["kind"], execution["index"])
+    repo.append_event(
+        s, participant=participant, kind="execution_finished", app_version=app_version(),
+        task_index=ts.task_index, step_kind=execution["kind"], step_index=execution["index"],
+        payload={"events": execution["events"], "trace": trace},
+    )
+    return True
+
+
+@lru_cache(maxsize=2048)
+def step_of(state_json: str) -> tuple[core.SessionState, core.Step]:
+    """The core state and its next step (cached: planning a query costs milliseconds, states repeat)."""
+    state = core.SessionState.from_json(state_json)
+    return state, core.next_step(state)
+
+
+def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed: bool = False) -> dict[str, Any]:
+    """What a participant (or scripted teacher) sees: stage, current step, robot and questionnaire."""
+    out: dict[str, Any] = {
+        "participant_id": participant.id,
+        "token": participant.token,
+        "study_id": study.id,
+        "stage": participant.stage,
+        "n_events": participant.n_events,
+        "objects": list(DINNER_OBJECTS),
+        "consent": {"text": study.consent_text, "version": study.consent_version,
+                    "given_at": iso(participant.consent_at)},
+        "task": None, "step": None, "demonstration": None, "execution": None,
+        "questionnaire": None, "completion": None, "replayed": replayed,
+    }
+    if participant.stage == "task":
+        ts = current_task(s, participant)
+        task = study.tasks[participant.task_index]
+        out["task"] = {"index": participant.task_index, "total": len(study.tasks), "name": task["name"],
+                       "instructions": task["instructions"], "key": task["key"]}
+        if ts is not None:
+            _, step = step_of(ts.state_json)
+            out["step"] = {"kind": step.kind, "index": step.index, "total": step.total}
+            if step.kind in ("practice", "demonstration"):
+                out["demonstration"] = {"placed": list(ts.demo_placed),
+                                        "labels": ts.demo_trace[-1] if ts.demo_trace else [],
+                                        "trace": list(ts.demo_trace)}
+            elif step.kind in ("query", "test"):
+                ex = ts.execution
+                if ex is not None and (ex["kind"], ex["index"]) == (step.kind, step.index):
+                    out["execution"] = {"kind": ex["kind"], "index": ex["index"], "status": ex["status"],
+                                        "events": ex["events"], "trace": ex.get("trace")}
+                else:
+                    out["execution"] = {"kind": step.kind, "index": step.index, "status": "not_started",
+                                        "events": None, "trace": None}
+    elif participant.stage == "questionnaire":
+        out["questionnaire"] = study.questionnaire
+    elif participant.stage == "done":
+        out["completion"] = {"code": participant.completion_code,
+                             "redirect_url": _completion_url(study, participant.completion_code),
+                             "learned": _learned(s, participant)}
+    return out
+
+
+def _learned(s: Any, participant: ParticipantRow) -> list[dict[str, Any]]:
+    """The debriefing: what the robot believes each task is, once the participant has finished."""
+    space = get_domain("dinner").clause_space
+    out = []
+    for ts in repo.task_sessions_of(s, participant_id=participant.id):
+        b = core.belief(core.SessionState.from_json(ts.state_json))
+        out.append({"task_index": ts.task_index, "map_formula": space.text_of(b.map_mask),
+                    "map_description": space.describe(b.map_mask)})
+    return out
+
+
+def _completion_url(study: StudyRow, code: str | None) -> str | None:
+    if not study.completion_url:
+        return None
+    return study.completion_url.replace("{code}", code or "")
+
+
+def participant_state(ctx: Context, token: str) -> dict[str, Any]:
+    """The participant's state; a robot execution that has finished meanwhile is recorded first."""
+    with ctx.db.read() as s:
+        participant, study = participant_and_study(s, token)
+        ts = current_task(s, participant)
+        needs_write = ts is not None and ts.execution is not None and ts.execution["status"] == "running"
+        if not needs_write:
+            return state_view(s, participant, study)
+    with ctx.db.write() as s:
+        participant, study = participant_and_study(s, token)
+        ts = current_task(s, participant)
+        if ts is not None and sync_execution(ctx, s, participant, ts):
+            commit(s)
+        return state_view(s, participant, study)
+
+
+def participant_and_study(s: Any, token: str) -> tuple[ParticipantRow, StudyRow]:
+    participant = repo.get_participant_by_token(s, token=token) if token else None
+    if participant is None:
+        raise NotAuthenticated("unknown participant token; use the link you were given (Authorization: Bearer <token>)")
+    study = repo.get_study(s, study_id=participant.study_id)
+    assert study is not None  # foreign key
+    return participant, study
+
+
+@dataclass
+class Expect:
+    """Where the client believes the session is; a mismatch (second tab, stale page) is a 409."""
+
+    task_index: int | None = None
+    step_kind: str | None = None
+    step_index: int | None = None
+
+
+@dataclass
+class Action:
+    """One participant request being carried out: its log writes carry the idempotency key."""
+
+    ctx: Context
+    s: Any
+    participant: ParticipantRow
+    study: StudyRow
+    key: str | None
+    digest: str | None
+    events: list[EventRow] = field(default_factory=list)
+
+    def log(self, kind: str, payload: dict[str, Any], *, task_index: int | None = None,
+            step_kind: str | None = None, step_index: int | None = None) -> None:
+        """Append an event; the first one of the request stores the client's key."""
+        first = not self.events
+        self.events.append(repo.append_event(
+            self.s, participant=self.participant, kind=kind, payload=payload, app_version=app_version(),
+            task_index=task_index, step_kind=step_kind, step_index=step_index,
+            client_event_id=self.key if first else None, request_digest=self.digest if first else None,
+        ))
+
+
+def _digest(action: str, body: dict[str, Any]) -> str:
+    return hashlib.sha256(json.dumps([action, body], sort_keys=True, default=str).encode()).hexdigest()
+
+
+def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | None,
+         run: Callable[[Action], None]) -> dict[str, Any]:
+    """Run one participant action in a write transaction: replay check, change, log, commit, new state."""
+    digest = _digest(action, body)
+    with ctx.db.write() as s:
+        participant, study = participant_and_study(s, token)
+        if key is not None:
+            previous = repo.find_event_by_client_id(s, participant_id=participant.id, client_event_id=key)
+            if previous is not None:
+                if previous.request_digest == digest:
+                    return state_view(s, participant, study, replayed=True)
+                raise Conflict(f"Idempotency-Key {key!r} was already used for a different request "
+                               f"({previous.kind}); use a new key for a new action",
+                               state=state_view(s, participant, study))
+        try:
+            run(Action(ctx, s, participant, study, key, digest))
+            repo.commit(s)
+            return state_view(s, participant, study)
+        except Conflict as exc:
+            conflict = exc
+        except repo.WriteConflict as exc:
+            conflict = Conflict(f"another request for this participant was stored first; here is the current "
+                                f"state ({exc})")
+    # Outside the write transaction (and its lock): the current state for the 409 answer.
+    if conflict.state is None:
+        conflict.state = _reload_state(ctx, token)
+    raise conflict
+
+
+def _reload_state(ctx: Context, token: str) -> dict[str, Any] | None:
+    try:
+        return participant_state(ctx, token)
+    except Exception:  # the state is a courtesy in an error answer; never mask the error itself
+        log.exception("could not load state for a conflict answer")
+        return None
+
+
+def require_stage(a: Action, stage: str) -> None:
+    if a.participant.stage != stage:
+        raise Conflict(f"this action belongs to the {stage} stage, but the participant is at the "
+                       f"{a.participant.stage} stage")

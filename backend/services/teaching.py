@@ -1,0 +1,173 @@
+"""Teaching steps: demonstrations, robot executions (queries and tests) and their assessments."""
+
+from __future__ import annotations
+
+import secrets
+from typing import Any
+
+from ..core import session as core
+from ..core.domain import DINNER_OBJECTS
+from ..db import repository as repo
+from ..db.tables import TaskSessionRow, utcnow
+from ..errors import Conflict, InvalidInput
+from .context import Context
+from .state import (
+    Action,
+    Expect,
+    act,
+    require_stage,
+    robot_key,
+    save_recording,
+    session_config,
+    step_of,
+    sync_execution,
+)
+
+
+def begin_task(a: Action, task_index: int) -> None:
+    a.participant.stage = "task"
+    a.participant.task_index = task_index
+    config = session_config(a.study, a.participant, task_index)
+    repo.add_task_session(a.s, participant_id=a.participant.id, task_index=task_index,
+                          state_json=core.start(config).to_json())
+    task = a.study.tasks[task_index]
+    a.log("task_started", {"task": task["key"], "ground_truth": task["ground_truth"], "protocol": config.protocol,
+                           "seed": config.seed}, task_index=task_index)
+
+
+def _teaching(a: Action, expect: Expect, kinds: tuple[str, ...]) -> tuple[TaskSessionRow, core.SessionState, core.Step]:
+    """The current task session and step; Conflict unless the step is one of kinds and matches expect."""
+    require_stage(a, "task")
+    ts = repo.get_task_session(a.s, participant_id=a.participant.id, task_index=a.participant.task_index)
+    assert ts is not None
+    state, step = step_of(ts.state_json)
+    here = f"{step.kind} {step.index + 1} of {step.total} in task {a.participant.task_index + 1}"
+    if expect.task_index is not None and expect.task_index != a.participant.task_index:
+        raise Conflict(f"this request is for task {expect.task_index + 1}, but the session is at {here}")
+    if (expect.step_kind is not None and expect.step_kind != step.kind) or (
+        expect.step_index is not None and expect.step_index != step.index
+    ):
+        want = f"{expect.step_kind or step.kind} {(expect.step_index if expect.step_index is not None else step.index) + 1}"
+        raise Conflict(f"this request is for {want}, but the session is at {here}")
+    if step.kind not in kinds:
+        raise Conflict(f"the session is at {here}; this action needs a {' or '.join(kinds)} step")
+    return ts, state, step
+
+
+def _sync_demonstration(a: Action, ts: TaskSessionRow) -> None:
+    """Make the robot's table match the stored placements (it forgets them on a restart)."""
+    key = robot_key(a.participant, ts.task_index)
+    if not ts.demo_trace:
+        initial = a.ctx.robot.reset(key)
+        ts.demo_trace = [sorted(initial)]
+    elif a.ctx.robot.placed(key) != tuple(ts.demo_placed):
+        a.ctx.robot.reset(key)
+        for obj in ts.demo_placed:
+            a.ctx.robot.place(key, obj)
+
+
+def place_object(ctx: Context, token: str, *, obj: str, expect: Expect, key: str | None = None) -> dict[str, Any]:
+    """During a practice trial or demonstration, the participant places one object on the table."""
+    def run(a: Action) -> None:
+        ts, _state_, step = _teaching(a, expect, ("practice", "demonstration"))
+        if obj not in DINNER_OBJECTS:
+            raise InvalidInput(f"unknown object {obj!r}; expected one of {', '.join(DINNER_OBJECTS)}")
+        if obj in ts.demo_placed:
+            raise Conflict(f"the {obj} is already on the table; a placed object cannot be placed again")
+        _sync_demonstration(a, ts)
+        try:
+            labels = a.ctx.robot.place(robot_key(a.participant, ts.task_index), obj)
+        except ValueError as exc:
+            raise Conflict(f"the robot could not place the {obj}: {exc}") from exc
+        ts.demo_placed = [*ts.demo_placed, obj]
+        ts.demo_trace = [*ts.demo_trace, sorted(labels)]
+        a.log("place", {"object": obj, "labels": sorted(labels), "placed": list(ts.demo_placed)},
+              task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+
+    return act(ctx, token, "place", {"object": obj, **expect.__dict__}, key, run)
+
+
+def finish_demonstration(ctx: Context, token: str, *, expect: Expect, key: str | None = None) -> dict[str, Any]:
+    """End the practice trial or demonstration (stopping early is allowed: Task 2 needs it)."""
+    def run(a: Action) -> None:
+        ts, state, step = _teaching(a, expect, ("practice", "demonstration"))
+        _sync_demonstration(a, ts)
+        trace = [list(labels) for labels in ts.demo_trace]
+        new_state = core.observe(state, step.kind, trace)
+        a.log("demonstration", {"placed": list(ts.demo_placed), "trace": trace},
+              task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+        if ts.demo_placed:
+            save_recording(a.ctx, a.participant, ts.task_index, step.kind, step.index)
+        ts.demo_placed, ts.demo_trace = [], []
+        a.ctx.robot.release(robot_key(a.participant, ts.task_index))
+        _advance(a, ts, new_state)
+
+    return act(ctx, token, "finish", dict(expect.__dict__), key, run)
+
+
+def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None = None) -> dict[str, Any]:
+    """The robot carries out the current query or test execution (starting it twice is harmless)."""
+    def run(a: Action) -> None:
+        ts, state, step = _teaching(a, expect, ("query", "test"))
+        ex = ts.execution
+        if ex is not None and (ex["kind"], ex["index"]) == (step.kind, step.index):
+            sync_execution(a.ctx, a.s, a.participant, ts)
+            return  # a second click on "run": the same execution is already under way or done
+        assert step.robot_execution is not None
+        events = list(step.robot_execution.events)
+        a.ctx.robot.execute(robot_key(a.participant, ts.task_index), events)
+        ts.execution = {"kind": step.kind, "index": step.index, "events": events, "status": "running",
+                        "trace": None, "p_acceptable": step.p_acceptable, "started_at": utcnow().isoformat()}
+        a.log("execution_started", {"events": events, "p_acceptable": step.p_acceptable},
+              task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+        sync_execution(a.ctx, a.s, a.participant, ts)
+
+    return act(ctx, token, "execute", dict(expect.__dict__), key, run)
+
+
+def assess_execution(ctx: Context, token: str, *, acceptable: bool | None, expect: Expect,
+                     key: str | None = None) -> dict[str, Any]:
+    """The participant's verdict on the robot's finished execution (required for queries)."""
+    def run(a: Action) -> None:
+        ts, state, step = _teaching(a, expect, ("query", "test"))
+        ex = ts.execution
+        if ex is None or (ex["kind"], ex["index"]) != (step.kind, step.index):
+            raise Conflict(f"the robot has not started {step.kind} {step.index + 1} yet; start its execution first")
+        sync_execution(a.ctx, a.s, a.participant, ts)
+        ex = ts.execution
+        if ex["status"] != "finished":
+            raise Conflict(f"the robot is still carrying out {step.kind} {step.index + 1}; "
+                           "assess it once the execution has finished")
+        if step.kind == "query" and acceptable is None:
+            raise InvalidInput("a query needs an assessment: acceptable must be true or false")
+        new_state = core.observe(state, step.kind, ex["trace"], acceptable)
+        a.log("assessment", {"acceptable": acceptable, "events": ex["events"], "trace": ex["trace"],
+                             "p_acceptable": ex.get("p_acceptable")},
+              task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+        ts.execution = None
+        a.ctx.robot.release(robot_key(a.participant, ts.task_index))
+        _advance(a, ts, new_state)
+
+    return act(ctx, token, "assess", {"acceptable": acceptable, **expect.__dict__}, key, run)
+
+
+def _advance(a: Action, ts: TaskSessionRow, new_state: core.SessionState) -> None:
+    """Store the core's new state; after the last step of a task, go to the next task or the questionnaire."""
+    ts.state_json = new_state.to_json()
+    if new_state.phase != "done":
+        return
+    a.log("task_finished", {}, task_index=ts.task_index)
+    a.ctx.robot.close(robot_key(a.participant, ts.task_index))  # the next task has its own table (and view)
+    if ts.task_index + 1 < len(a.study.tasks):
+        begin_task(a, ts.task_index + 1)
+    elif a.study.questionnaire:
+        a.participant.stage = "questionnaire"
+    else:
+        complete(a)
+
+
+def complete(a: Action) -> None:
+    a.participant.stage = "done"
+    a.participant.finished_at = utcnow()
+    a.participant.completion_code = secrets.token_hex(4).upper()
+    a.log("completed", {"completion_code": a.participant.completion_code})

@@ -1,0 +1,91 @@
+"""The participant's 3D view: starting it, clicks in it, robot activity, and the one-tab rule."""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Callable
+from typing import Any
+
+from ..errors import Conflict, InvalidInput
+from ..robot import ViewingRobot
+from .context import Context
+from .state import Expect, current_task, participant_and_study, robot_key, step_of
+from .teaching import place_object
+
+log = logging.getLogger(__name__)
+
+
+def open_viewer(ctx: Context, token: str) -> int | None:
+    """The local port of the participant's 3D view for the current step, or None (no task, or a robot without view).
+
+    The view is started on first use and shows the stored state of the step (the robot forgets its
+    tables on a restart); during a practice trial or demonstration a click on a waiting object is a
+    placement through place_object, the same code path as POST /me/placements.
+    """
+    robot = ctx.robot
+    if not isinstance(robot, ViewingRobot):
+        with ctx.db.read() as s:
+            participant_and_study(s, token)  # an unknown token is refused whatever the robot
+        return None
+    # A write transaction (never committed) so that no placement is stored while the table is synced.
+    with ctx.db.write() as s:
+        participant, study_row = participant_and_study(s, token)
+        ts = current_task(s, participant)
+        if ts is None:
+            return None
+        _, step = step_of(ts.state_json)
+        key = robot_key(participant, ts.task_index)
+        on_click: Callable[[str], None] | None = None
+        if step.kind in ("practice", "demonstration"):
+            if ts.demo_trace and robot.placed(key) != tuple(ts.demo_placed):
+                robot.reset(key)
+                for obj in ts.demo_placed:
+                    robot.place(key, obj)
+            expect = Expect(ts.task_index, step.kind, step.index)
+
+            def on_click(obj: str) -> None:
+                _place_clicked(ctx, token, obj, expect)
+        else:
+            ex = ts.execution
+            if (ex is not None and ex["status"] == "finished" and (ex["kind"], ex["index"]) == (step.kind, step.index)
+                    and robot.progress(key) is None):
+                robot.execute(key, ex["events"])  # show the finished execution again after a restart
+        return robot.open_view(key, on_click)
+
+
+def _place_clicked(ctx: Context, token: str, obj: str, expect: Expect) -> None:
+    """A click in the 3D view; one that came too late for its step is dropped."""
+    try:
+        place_object(ctx, token, obj=obj, expect=expect)
+    except (Conflict, InvalidInput) as exc:
+        log.info("click on %s not placed: %s", obj, exc.message)
+
+
+def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
+    """What the participant's robot is doing now: moving, a caption, and how many views are connected."""
+    with ctx.db.read() as s:
+        participant, study_row = participant_and_study(s, token)
+        ts = current_task(s, participant)
+        key = None if ts is None else robot_key(participant, ts.task_index)
+    robot = ctx.robot
+    viewing = isinstance(robot, ViewingRobot)
+    activity = robot.activity(key) if viewing and key is not None else None
+    return {"view": viewing, "moving": bool(activity and activity.moving),
+            "caption": activity.caption if activity else "", "watchers": activity.watchers if activity else 0}
+
+
+def claim_tab(ctx: Context, token: str, tab_id: str, *, takeover: bool = False) -> dict[str, Any]:
+    """Hold (or renew) the one-tab lease of the participant's page; held is False while another tab holds it."""
+    with ctx.db.read() as s:
+        participant, study_row = participant_and_study(s, token)
+        pid = participant.id
+    held = ctx.tabs.claim(pid, tab_id, takeover=takeover)
+    return {"held": held, "lease_seconds": ctx.tabs.seconds}
+
+
+def release_tab(ctx: Context, token: str, tab_id: str) -> None:
+    """The tab is going away (reload or close): let the next one take over at once."""
+    with ctx.db.read() as s:
+        participant, study_row = participant_and_study(s, token)
+        pid = participant.id
+    ctx.tabs.release(pid, tab_id)
