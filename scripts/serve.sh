@@ -3,4 +3,4 @@
 source "$(dirname "${BASH_SOURCE[0]}")/_env.sh"
 ensure_venv
 mkdir -p "$ROOT/var"
-exec "$VENV/bin/tableteach" serve --demo --database-url "sqlite:///$ROOT/var/tableteach.db" "$@"
+exec "$VENV/bin/tableteach" serve --demo --database-url "sqlite:///$ROOT/var/tableteach.db" --data-dir "$ROOT/var/data" "$@"
