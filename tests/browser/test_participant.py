@@ -15,7 +15,7 @@ from tableteach.client import ExperimenterClient
 from tableteach.sim.recordings import list_recordings, load_recording
 from tests.web.conftest import EXPERIMENTER_TOKEN, open_study, study_spec
 
-from test_scene_view import _project
+from scene_clicks import project, wait_for_camera
 
 pytestmark = pytest.mark.browser
 
@@ -37,19 +37,6 @@ def _participant_id(server, token: str) -> int:
     return services.participant_state(server.ctx, token)["participant_id"]
 
 
-def _wait_for_camera(view, timeout: float = 60.0):
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        for client in view.server.get_clients().values():
-            try:
-                client.camera.fov  # raises until the browser has reported its camera
-                return client.camera
-            except AssertionError:
-                pass
-        time.sleep(0.1)
-    raise TimeoutError(f"no browser camera reported within {timeout} s: expected the 3D view to connect")
-
-
 def _scene(server, key: str, timeout: float = 30.0):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
@@ -63,13 +50,13 @@ def _scene(server, key: str, timeout: float = 30.0):
 def _click_object(page, server, key: str, obj: str) -> None:
     """Click an object in the embedded viser view (its position projected through the browser's camera)."""
     world, view = _scene(server, key)
-    camera = _wait_for_camera(view)
+    camera = wait_for_camera(view.server)
     canvas = page.frame_locator("#viewer-frame").locator("canvas").first
     canvas.scroll_into_view_if_needed()
     box = canvas.bounding_box()
     geoms = np.flatnonzero(world.model.geom_bodyid == world.layout.body[obj])
     point = world.data.geom_xpos[geoms].mean(axis=0) + np.array([0.0, 0.0, 0.01])
-    x, y = _project(camera, point, box["width"], box["height"])
+    x, y = project(camera, point, box["width"], box["height"])
     page.mouse.move(box["x"] + x, box["y"] + y)
     time.sleep(0.4)  # let the hover raycast run before pressing
     page.mouse.click(box["x"] + x, box["y"] + y)
