@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import time
+from pathlib import Path
 
 import httpx
 import numpy as np
@@ -155,6 +156,27 @@ def test_a_participant_completes_an_active_session_by_clicking_in_the_3d_view(br
     finished = next(e for e in events if e["kind"] == "execution_finished")
     assert list(query.events) == _json_list(finished["robot_events"])
     assert len(query.action_ends) == len(query.events) and query.recording.duration > 3.0
+
+    # The experimenter then finds this participant, the learning curves and the CSVs in the dashboard.
+    page.set_viewport_size({"width": 1280, "height": 800})  # the dashboard's layout size (no WebGL here)
+    page.goto(f"{server.url}/dashboard")
+    page.fill("#token", EXPERIMENTER_TOKEN)
+    page.click("form.login button[type=submit]")
+    page.click("#studies a:has-text('test active')")
+    row = page.locator(f"#participants tr[data-participant='{pid}']")
+    row.wait_for()
+    assert "done" in row.text_content() and code in row.text_content()
+    curves = page.locator(".task-curves[data-task='0'] svg.chart")
+    curves.first.wait_for()
+    assert curves.count() == 2
+    with page.expect_download() as download:
+        page.click("#downloads button[data-export='events']")
+    text = Path(download.value.path()).read_text(encoding="utf-8")
+    assert list(csv.DictReader(io.StringIO(text, newline=""))) == events
+    row.locator("a").click()
+    task = page.locator("section.task[data-task='0']")
+    task.locator("button[data-replay='query-0']").click()
+    task.locator(".replay[data-source='recording']").wait_for()  # the MuJoCo recording, not the bare trace
 
 
 def _json_list(cell: str) -> list[str]:
