@@ -193,8 +193,8 @@ def append_event(
 # ------------------------------------------------------------------ exports
 
 
-def iter_study_events(session: Session, *, study_id: str) -> Iterator[EventRow]:
-    """A study's events by participant then sequence, fetched in batches."""
+def iter_study_events(session: Session, *, study_id: str, kind: str | None = None) -> Iterator[EventRow]:
+    """A study's events (optionally of one kind) by participant then sequence, fetched in batches."""
     stmt = (
         select(EventRow)
         .join(ParticipantRow, EventRow.participant_id == ParticipantRow.id)
@@ -202,18 +202,8 @@ def iter_study_events(session: Session, *, study_id: str) -> Iterator[EventRow]:
         .order_by(EventRow.participant_id, EventRow.seq)
         .execution_options(yield_per=500)
     )
-    yield from session.scalars(stmt)
-
-
-def iter_study_events_of_kind(session: Session, *, study_id: str, kind: str) -> Iterator[EventRow]:
-    """A study's events of one kind, by participant then sequence."""
-    stmt = (
-        select(EventRow)
-        .join(ParticipantRow, EventRow.participant_id == ParticipantRow.id)
-        .where(ParticipantRow.study_id == study_id, EventRow.kind == kind)
-        .order_by(EventRow.participant_id, EventRow.seq)
-        .execution_options(yield_per=500)
-    )
+    if kind is not None:
+        stmt = stmt.where(EventRow.kind == kind)
     yield from session.scalars(stmt)
 
 

@@ -80,7 +80,7 @@ def _export_rows(ctx: Context, study_id: str, name: str) -> Iterator[list[Any]]:
         else:
             items = {item["id"]: item for item in study.questionnaire}
             conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study_id)}
-            for e in repo.iter_study_events_of_kind(s, study_id=study_id, kind="questionnaire"):
+            for e in repo.iter_study_events(s, study_id=study_id, kind="questionnaire"):
                 for item_id, answer in (e.payload.get("answers") or {}).items():
                     item = items.get(item_id, {})
                     yield [e.participant_id, conditions.get(e.participant_id), item_id, item.get("kind"),

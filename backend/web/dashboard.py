@@ -2,15 +2,11 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 from fastapi import APIRouter
 from fastapi.responses import FileResponse
 
-from ..errors import NotFound
+from .frontend_files import FRONTEND, allowed_file
 
-FRONTEND = Path(__file__).resolve().parents[2] / "frontend"
-# Only these files are served, so nothing else in frontend/ (or above it) can be reached by name.
 ASSETS = {
     "dashboard.js": "text/javascript",
     "dashboard-api.js": "text/javascript",
@@ -38,6 +34,4 @@ def dashboard_page() -> FileResponse:
 @router.get("/dashboard/assets/{name}", response_class=FileResponse, responses={404: {"description": "no such file"}})
 def dashboard_asset(name: str) -> FileResponse:
     """One of the dashboard's scripts or its stylesheet."""
-    if name not in ASSETS:
-        raise NotFound(f"no dashboard asset {name!r}; expected one of {', '.join(sorted(ASSETS))}")
-    return FileResponse(FRONTEND / name, media_type=ASSETS[name], headers=HEADERS)
+    return allowed_file(name, ASSETS, what="dashboard asset", headers=HEADERS)

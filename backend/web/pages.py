@@ -2,22 +2,20 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated
 
 from fastapi import APIRouter, Query
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
 
 from .. import services
-from ..errors import NotAuthenticated, NotFound
+from ..errors import NotAuthenticated
 from .deps import ContextDep
+from .frontend_files import FRONTEND, allowed_file
 from .schemas import error_responses
 
 router = APIRouter(tags=["pages"], responses=error_responses(422))
 ExternalId = Annotated[str | None, Query(max_length=128, pattern=r"^[A-Za-z0-9_.:\-]*$")]
 
-FRONTEND = Path(__file__).resolve().parents[2] / "frontend"
-# Only these files are served, so nothing else in frontend/ (or above it) can be reached by name.
 ASSETS = {
     "participant.js": "text/javascript; charset=utf-8",
     "participant-views.js": "text/javascript; charset=utf-8",
@@ -64,9 +62,7 @@ def participant_page(token: str, ctx: ContextDep) -> Response:
             responses={404: {"description": "no such file"}})
 def participant_asset(name: str) -> FileResponse:
     """A script, style sheet or picture of the participant page (only the files listed in ASSETS)."""
-    if name not in ASSETS:
-        raise NotFound(f"no participant asset named {name!r}; expected one of {', '.join(sorted(ASSETS))}")
-    return FileResponse(FRONTEND / name, media_type=ASSETS[name], headers={"Cache-Control": "no-cache"})
+    return allowed_file(name, ASSETS, what="participant asset", headers={"Cache-Control": "no-cache"})
 
 
 @router.get("/healthz")
