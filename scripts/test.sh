@@ -1,15 +1,20 @@
 #!/usr/bin/env bash
-# Quickstart 2: set up (Python packages and Debian's Chromium) and run the whole test suite.
+# Quickstart 2: set up (Python packages, Debian's Chromium and PostgreSQL) and run the whole test suite.
 source "$(dirname "${BASH_SOURCE[0]}")/_env.sh"
 
-if [ ! -x /usr/bin/chromium ]; then
-  echo "==> installing Debian's chromium for the browser tests"
-  if [ "$(id -u)" = 0 ]; then
-    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
-  elif command -v sudo >/dev/null; then
-    sudo apt-get update -qq && sudo DEBIAN_FRONTEND=noninteractive apt-get install -y -qq chromium >/dev/null
+# Debian packages the tests use: Chromium for the browser tests, PostgreSQL for the database tests.
+missing=()
+[ -x /usr/bin/chromium ] || missing+=(chromium)
+compgen -G "/usr/lib/postgresql/*/bin/initdb" >/dev/null || missing+=(postgresql)
+if [ ${#missing[@]} -gt 0 ]; then
+  echo "==> installing Debian packages: ${missing[*]}"
+  sudo=""
+  [ "$(id -u)" = 0 ] || sudo="sudo"
+  if [ -n "$sudo" ] && ! command -v sudo >/dev/null; then
+    echo "warning: cannot install ${missing[*]} (not root, no sudo); their tests will be skipped" >&2
   else
-    echo "warning: cannot install chromium (not root, no sudo); browser tests will be skipped" >&2
+    $sudo apt-get update -qq
+    $sudo env DEBIAN_FRONTEND=noninteractive apt-get install -y -qq "${missing[@]}" >/dev/null
   fi
 fi
 ensure_venv test

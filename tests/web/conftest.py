@@ -33,10 +33,11 @@ def free_port() -> int:
 
 
 class ServerProcess:
-    """`tableteach serve` in a subprocess on a temp SQLite file; kill() is a crash, not a shutdown."""
+    """`tableteach serve` in a subprocess (a temp SQLite file unless a URL is given); kill() is a crash."""
 
-    def __init__(self, db_path: Path, **env: str) -> None:
+    def __init__(self, db_path: Path, database_url: str | None = None, **env: str) -> None:
         self.db_path = db_path
+        self.database_url = database_url or f"sqlite:///{db_path}"
         self.env = env
         self.proc: subprocess.Popen[bytes] | None = None
         self.port = 0
@@ -54,7 +55,7 @@ class ServerProcess:
         log = open(self.db_path.with_suffix(f".{self.port}.log"), "wb")
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "tableteach.cli", "serve", "--port", str(self.port),
-             "--database-url", f"sqlite:///{self.db_path}"],
+             "--database-url", self.database_url],
             env=env, stdout=log, stderr=subprocess.STDOUT,
         )
         deadline = time.monotonic() + 30
