@@ -57,12 +57,9 @@ def _participant(s: Any, study_id: str, participant_id: int) -> ParticipantRow:
 
 
 def _step_of(state: core.SessionState) -> dict[str, Any]:
-    """Where a teaching session is: phase, index and total (without planning the robot's next execution)."""
-    c = state.config
-    totals = {"practice": c.n_practice, "demonstration": c.demonstrations_needed, "query": c.queries_needed,
-              "test": c.n_tests, "done": 0}
-    phase = state.phase
-    return {"kind": phase, "index": state.count(phase) if phase != "done" else 0, "total": totals[phase]}
+    """Where a teaching session is (without planning the robot's next execution)."""
+    kind, index, total = core.position(state)
+    return {"kind": kind, "index": index, "total": total}
 
 
 def _inactive_minutes(participant: ParticipantRow, now: datetime) -> float:

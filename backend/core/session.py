@@ -212,9 +212,8 @@ def beliefs_by_step(state: SessionState) -> list[Belief]:
     return out
 
 
-@lru_cache(maxsize=256)  # states are immutable values: the server asks for the same step several times
-def next_step(state: SessionState) -> Step:
-    """What happens next; robot turns come with the robot's execution (deterministic per seed)."""
+def position(state: SessionState) -> tuple[StepKind, int, int]:
+    """Where a session is, without planning the robot's turn: (phase, index within it, phase total)."""
     c = state.config
     kind = state.phase
     totals = {
@@ -224,15 +223,22 @@ def next_step(state: SessionState) -> Step:
         "test": c.n_tests,
         "done": 0,
     }
-    index = state.count(kind) if kind != "done" else 0
+    return kind, (state.count(kind) if kind != "done" else 0), totals[kind]
+
+
+@lru_cache(maxsize=256)  # states are immutable values: the server asks for the same step several times
+def next_step(state: SessionState) -> Step:
+    """What happens next; robot turns come with the robot's execution (deterministic per seed)."""
+    c = state.config
+    kind, index, total = position(state)
     if kind == "query":
         strategy = "active" if c.protocol == "active" else "random"
         execution, p = query(belief(state), strategy, _rng(c, kind, index))
-        return Step(kind, index, totals[kind], execution, p)
+        return Step(kind, index, total, execution, p)
     if kind == "test":
         execution, p = plan_execution(belief(state), c.criterion, _rng(c, kind, index))
-        return Step(kind, index, totals[kind], execution, p)
-    return Step(kind, index, totals[kind])
+        return Step(kind, index, total, execution, p)
+    return Step(kind, index, total)
 
 
 def observe(

@@ -5,7 +5,7 @@ import pytest
 
 from tableteach.core.domain import get_domain
 from tableteach.core.session import (
-    ProtocolError, SessionConfig, SessionState, belief, beliefs_by_step, next_step, observe, start,
+    ProtocolError, SessionConfig, SessionState, belief, beliefs_by_step, next_step, observe, position, start,
 )
 from tableteach.core.teachers import SimulatedTeacher
 
@@ -93,3 +93,11 @@ def test_teacher_demonstration_modes():
     for mode in ("optimal", "uniform", "fixed"):
         teacher = SimulatedTeacher(DINNER, TASK1, demo_mode=mode)
         assert teacher.assess(teacher.demonstrate(rng).trace, rng)
+
+
+def test_position_agrees_with_next_step_through_a_session():
+    state, _ = run(SessionConfig(seed=4))
+    for k in range(len(state.records) + 1):
+        partial = SessionState(state.config, state.records[:k])
+        step = next_step(partial)
+        assert position(partial) == (step.kind, step.index, step.total)
