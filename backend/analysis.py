@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import statistics
-from datetime import datetime, timezone
 from functools import lru_cache
 from typing import Any
 
@@ -19,38 +18,20 @@ from .core import session as core
 from .core.domain import get_domain
 from .db import analysis_queries as aq
 from .db import repository as repo
-from .db.tables import EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
+from .db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
 from .errors import NotFound
 from .services import Context
+from .services.context import iso
+from .services.monitoring import (
+    FINISHED,
+    inactive_minutes,
+    participant_row,
+    study_participant,
+)
+from .services.state import current_task
+from .services.studies import study_row
 
 TOP_K = 5
-FINISHED = ("done", "withdrawn")
-
-
-def _aware(value: datetime | None) -> datetime | None:
-    """SQLite returns naive datetimes; every stored time is UTC."""
-    if value is None or value.tzinfo is not None:
-        return value
-    return value.replace(tzinfo=timezone.utc)
-
-
-def _iso(value: datetime | None) -> str | None:
-    value = _aware(value)
-    return None if value is None else value.isoformat()
-
-
-def _study(s: Any, study_id: str) -> StudyRow:
-    study = repo.get_study(s, study_id=study_id)
-    if study is None:
-        raise NotFound(f"no study with id {study_id!r}")
-    return study
-
-
-def _participant(s: Any, study_id: str, participant_id: int) -> ParticipantRow:
-    participant = repo.get_participant(s, study_id=study_id, participant_id=participant_id)
-    if participant is None:
-        raise NotFound(f"study {study_id!r} has no participant {participant_id}")
-    return participant
 
 
 # ====================================================================== live table
@@ -62,33 +43,21 @@ def _step_of(state: core.SessionState) -> dict[str, Any]:
     return {"kind": kind, "index": index, "total": total}
 
 
-def _inactive_minutes(participant: ParticipantRow, now: datetime) -> float:
-    last = _aware(participant.last_activity_at) or now
-    return max(0.0, (now - last).total_seconds() / 60)
-
-
 def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | None = None) -> dict[str, Any]:
     """Participants with their current step and inactivity; unfinished ones idle past the threshold are dropouts."""
     threshold = ctx.settings.active_minutes if dropout_minutes is None else dropout_minutes
     now = utcnow()
     with ctx.db.read() as s:
-        study = _study(s, study_id)
+        study = study_row(s, study_id)
         rows = []
         for p in repo.list_participants(s, study_id=study_id):
-            inactive = _inactive_minutes(p, now)
-            step = None
-            if p.stage == "task":
-                ts = repo.get_task_session(s, participant_id=p.id, task_index=p.task_index)
-                if ts is not None:
-                    step = {"task_index": p.task_index, **_step_of(core.SessionState.from_json(ts.state_json))}
-            unfinished = p.stage not in FINISHED
+            inactive = inactive_minutes(p, now)
+            ts = current_task(s, p)
+            step = None if ts is None else {"task_index": p.task_index,
+                                            **_step_of(core.SessionState.from_json(ts.state_json))}
             rows.append({
-                "participant_id": p.id, "condition": p.condition, "stage": p.stage, "task_index": p.task_index,
-                "n_tasks": len(study.tasks), "step": step, "pilot": p.pilot, "prolific_pid": p.prolific_pid,
-                "status": p.stage if not unfinished else ("active" if inactive <= ctx.settings.active_minutes else "idle"),
-                "dropout": unfinished and inactive > threshold, "inactive_minutes": inactive,
-                "created_at": _iso(p.created_at), "last_activity_at": _iso(p.last_activity_at),
-                "finished_at": _iso(p.finished_at), "n_events": p.n_events, "completion_code": p.completion_code,
+                **participant_row(p, ctx.settings, now), "n_tasks": len(study.tasks), "step": step,
+                "dropout": p.stage not in FINISHED and inactive > threshold, "inactive_minutes": inactive,
             })
     return {"study_id": study_id, "now": now.isoformat(), "dropout_minutes": threshold, "participants": rows}
 
@@ -143,19 +112,19 @@ def _executions(events: list[EventRow]) -> list[dict[str, Any]]:
             item = {"task_index": e.task_index, "kind": e.step_kind, "index": e.step_index,
                     "by": "participant" if e.kind in ("place", "demonstration") else "robot", "status": "running",
                     "objects": None, "trace": None, "acceptable": None, "p_acceptable": None,
-                    "learning_step": None, "started_at": _iso(e.created_at), "finished_at": None}
+                    "learning_step": None, "started_at": iso(e.created_at), "finished_at": None}
             by_step[key] = item
             out.append(item)
         if e.kind == "place":
             item.update(objects=pl.get("placed"))
         elif e.kind == "demonstration":
             item.update(status="finished", objects=pl.get("placed"), trace=pl.get("trace"),
-                        acceptable=True if e.step_kind == "demonstration" else None, finished_at=_iso(e.created_at))
+                        acceptable=True if e.step_kind == "demonstration" else None, finished_at=iso(e.created_at))
         elif e.kind == "execution_started":
             item.update(objects=pl.get("events"), p_acceptable=pl.get("p_acceptable"))
         elif e.kind == "execution_finished":
             item.update(status="finished", objects=pl.get("events"), trace=pl.get("trace"),
-                        finished_at=_iso(e.created_at))
+                        finished_at=iso(e.created_at))
         else:
             item.update(status="assessed", objects=pl.get("events"), trace=pl.get("trace"),
                         acceptable=pl.get("acceptable"), p_acceptable=pl.get("p_acceptable", item["p_acceptable"]))
@@ -167,7 +136,7 @@ def _executions(events: list[EventRow]) -> list[dict[str, Any]]:
 
 
 def _event_view(e: EventRow) -> dict[str, Any]:
-    return {"seq": e.seq, "created_at": _iso(e.created_at), "kind": e.kind, "task_index": e.task_index,
+    return {"seq": e.seq, "created_at": iso(e.created_at), "kind": e.kind, "task_index": e.task_index,
             "step_kind": e.step_kind, "step_index": e.step_index, "payload": e.payload or {}}
 
 
@@ -176,8 +145,8 @@ def participant_history(ctx: Context, study_id: str, participant_id: int) -> dic
     space = get_domain("dinner").clause_space
     now = utcnow()
     with ctx.db.read() as s:
-        study = _study(s, study_id)
-        p = _participant(s, study_id, participant_id)
+        study = study_row(s, study_id)
+        p = study_participant(s, study_id, participant_id)
         events = aq.participant_events(s, participant_id=p.id)
         executions = _executions(events)
         tasks = []
@@ -199,17 +168,9 @@ def participant_history(ctx: Context, study_id: str, participant_id: int) -> dic
             for e in events if e.kind == "questionnaire"
             for item_id, answer in (e.payload.get("answers") or {}).items()
         ]
-        inactive = _inactive_minutes(p, now)
-        unfinished = p.stage not in FINISHED
         return {
             "study_id": study_id,
-            "participant": {
-                "participant_id": p.id, "condition": p.condition, "stage": p.stage, "task_index": p.task_index,
-                "status": p.stage if not unfinished else ("active" if inactive <= ctx.settings.active_minutes else "idle"),
-                "pilot": p.pilot, "prolific_pid": p.prolific_pid, "created_at": _iso(p.created_at),
-                "last_activity_at": _iso(p.last_activity_at), "finished_at": _iso(p.finished_at),
-                "n_events": p.n_events, "completion_code": p.completion_code, "seed": p.seed,
-            },
+            "participant": {**participant_row(p, ctx.settings, now), "seed": p.seed},
             "tasks": tasks,
             "events": [_event_view(e) for e in events],
             "questionnaire": answers,
@@ -248,7 +209,7 @@ def _quantile(values: list[float], q: float) -> float | None:
 def learning_curves(ctx: Context, study_id: str, *, finished_only: bool = False) -> dict[str, Any]:
     """Per task and condition (and all conditions together): the curves across participants, and each one's own."""
     with ctx.db.read() as s:
-        study = _study(s, study_id)
+        study = study_row(s, study_id)
         study_tasks, study_conditions = list(study.tasks), list(study.conditions)
         per_task: dict[int, list[dict[str, Any]]] = {i: [] for i in range(len(study_tasks))}
         for ts, p in aq.study_task_sessions_with_participants(s, study_id=study_id):
@@ -284,7 +245,9 @@ def _quat_yaw(w: float, x: float, y: float, z: float) -> float:
 @lru_cache(maxsize=1)
 def table_layout() -> dict[str, Any]:
     """The scene seen from above (metres, world frame): both tables, the robot's base, each object's size and poses."""
-    from .sim.scene import load_scene  # the sim adapter imports MuJoCo; only replays need it
+    from .sim.scene import (
+        load_scene,  # the sim adapter imports MuJoCo; only replays need it
+    )
 
     model, layout = load_scene()
     tables = []
@@ -360,8 +323,8 @@ def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int,
     from .sim.recordings import RecordingId, load_recording  # numpy only
 
     with ctx.db.read() as s:
-        _study(s, study_id)
-        pid = _participant(s, study_id, participant_id).id
+        study_row(s, study_id)
+        pid = study_participant(s, study_id, participant_id).id
         executions = _executions(aq.participant_events(s, participant_id=pid))
     found = [x for x in executions if (x["task_index"], x["kind"], x["index"]) == (task_index, step_kind, step_index)]
     if not found:

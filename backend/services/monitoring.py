@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from datetime import timedelta
+from datetime import datetime
 from typing import Any
 
 from ..config import Settings
@@ -15,32 +15,51 @@ from .context import Context, aware, iso
 from .state import current_task
 from .studies import study_row
 
+FINISHED = ("done", "withdrawn")
 
-def _live_status(participant: ParticipantRow, settings: Settings) -> str:
-    if participant.stage in ("done", "withdrawn"):
+
+def inactive_minutes(participant: ParticipantRow, now: datetime) -> float:
+    """Minutes since the participant's last request (0 if none is recorded)."""
+    last = aware(participant.last_activity_at) or now
+    return max(0.0, (now - last).total_seconds() / 60)
+
+
+def live_status(participant: ParticipantRow, settings: Settings, now: datetime) -> str:
+    """done / withdrawn, else active or idle by the settings' active_minutes."""
+    if participant.stage in FINISHED:
         return participant.stage
-    last = aware(participant.last_activity_at) or utcnow()
-    return "active" if utcnow() - last <= timedelta(minutes=settings.active_minutes) else "idle"
+    return "active" if inactive_minutes(participant, now) <= settings.active_minutes else "idle"
+
+
+def participant_row(participant: ParticipantRow, settings: Settings, now: datetime) -> dict[str, Any]:
+    """The fields every experimenter view shows about a participant."""
+    p = participant
+    return {
+        "participant_id": p.id, "condition": p.condition, "stage": p.stage, "task_index": p.task_index,
+        "status": live_status(p, settings, now), "pilot": p.pilot, "prolific_pid": p.prolific_pid,
+        "created_at": iso(p.created_at), "last_activity_at": iso(p.last_activity_at),
+        "finished_at": iso(p.finished_at), "n_events": p.n_events, "completion_code": p.completion_code,
+    }
+
+
+def study_participant(s: Any, study_id: str, participant_id: int) -> ParticipantRow:
+    """A participant of a study; NotFound names both otherwise."""
+    participant = repo.get_participant(s, study_id=study_id, participant_id=participant_id)
+    if participant is None:
+        raise NotFound(f"study {study_id!r} has no participant {participant_id}")
+    return participant
 
 
 def list_participants(ctx: Context, study_id: str) -> list[dict[str, Any]]:
-    """A study's participants with their stage, live status and last activity."""
+    """A study's participants with their stage, current phase, live status and last activity."""
+    now = utcnow()
     with ctx.db.read() as s:
         study_row(s, study_id)
         out = []
         for p in repo.list_participants(s, study_id=study_id):
-            step = None
             ts = current_task(s, p)
-            if ts is not None:
-                nxt = core.SessionState.from_json(ts.state_json).phase
-                step = nxt
-            out.append({
-                "participant_id": p.id, "condition": p.condition, "stage": p.stage, "task_index": p.task_index,
-                "phase": step, "status": _live_status(p, ctx.settings), "pilot": p.pilot,
-                "prolific_pid": p.prolific_pid, "created_at": iso(p.created_at),
-                "last_activity_at": iso(p.last_activity_at), "finished_at": iso(p.finished_at),
-                "n_events": p.n_events, "completion_code": p.completion_code,
-            })
+            phase = None if ts is None else core.SessionState.from_json(ts.state_json).phase
+            out.append({**participant_row(p, ctx.settings, now), "phase": phase})
         return out
 
 
@@ -54,9 +73,7 @@ def belief_summary(ctx: Context, study_id: str, participant_id: int, *, top: int
     space = get_domain("dinner").clause_space
     with ctx.db.read() as s:
         study = study_row(s, study_id)
-        participant = repo.get_participant(s, study_id=study_id, participant_id=participant_id)
-        if participant is None:
-            raise NotFound(f"study {study_id!r} has no participant {participant_id}")
+        participant = study_participant(s, study_id, participant_id)
         tasks = []
         for ts in repo.task_sessions_of(s, participant_id=participant.id):
             state = core.SessionState.from_json(ts.state_json)

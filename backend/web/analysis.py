@@ -9,12 +9,11 @@ from pydantic import BaseModel, Field
 
 from .. import analysis
 from .deps import ContextDep, Experimenter
-from .schemas import error_responses
+from .schemas import ParticipantBaseOut, error_responses
 
 router = APIRouter(prefix="/api/v1/studies", tags=["analysis"], dependencies=[Experimenter],
                    responses=error_responses(401, 404, 422))
 
-Status = Literal["active", "idle", "done", "withdrawn"]
 StepKind = Literal["practice", "demonstration", "query", "test"]
 
 
@@ -30,23 +29,11 @@ class LiveStepOut(StepOut):
     task_index: int
 
 
-class LiveRowOut(BaseModel):
-    participant_id: int
-    condition: str
-    stage: str
-    task_index: int
+class LiveRowOut(ParticipantBaseOut):
     n_tasks: int
     step: LiveStepOut | None
-    pilot: bool
-    prolific_pid: str | None
-    status: Status
     dropout: bool = Field(description="not finished and inactive longer than dropout_minutes")
     inactive_minutes: float
-    created_at: str | None
-    last_activity_at: str | None
-    finished_at: str | None
-    n_events: int
-    completion_code: str | None
 
 
 class LiveOut(BaseModel):
@@ -126,19 +113,7 @@ class AnswerOut(BaseModel):
     answer: int | str | None
 
 
-class ParticipantInfoOut(BaseModel):
-    participant_id: int
-    condition: str
-    stage: str
-    task_index: int
-    status: Status
-    pilot: bool
-    prolific_pid: str | None
-    created_at: str | None
-    last_activity_at: str | None
-    finished_at: str | None
-    n_events: int
-    completion_code: str | None
+class ParticipantInfoOut(ParticipantBaseOut):
     seed: int
 
 

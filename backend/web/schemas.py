@@ -133,12 +133,13 @@ class StudyOut(BaseModel):
     updated_at: str | None
 
 
-class ParticipantRowOut(BaseModel):
+class ParticipantBaseOut(BaseModel):
+    """What every experimenter view shows about a participant (services.monitoring.participant_row)."""
+
     participant_id: int
     condition: str
     stage: str
     task_index: int
-    phase: str | None
     status: Literal["active", "idle", "done", "withdrawn"]
     pilot: bool
     prolific_pid: str | None
@@ -147,6 +148,10 @@ class ParticipantRowOut(BaseModel):
     finished_at: str | None
     n_events: int
     completion_code: str | None
+
+
+class ParticipantRowOut(ParticipantBaseOut):
+    phase: str | None
 
 
 class BeliefOut(BaseModel):
