@@ -54,13 +54,20 @@ def test_p_acceptable_equals_naive_sum(data, trace):
     assert belief.p_acceptable(trace) == pytest.approx(naive, abs=1e-12)
 
 
-@given(labelled)
-def test_incremental_update_equals_batch(data):
-    batch = Belief.prior(SMALL).observe_all([LabelledExecution.of(t, a) for t, a in data])
+@given(labelled, st.randoms(use_true_random=False))
+def test_incremental_updates_equal_one_pass_from_scratch_in_any_order(data, random):
     step = Belief.prior(SMALL)
     for t, a in data:
         step = step.observe(t, a)
-    np.testing.assert_allclose(step.log_weights, batch.log_weights, rtol=0, atol=1e-12)
+    cs = SMALL.domain.clause_space
+    from_scratch = SMALL.log_prior + sum(
+        (log_likelihood(SMALL, cs.sat_mask(t), a) for t, a in data), np.zeros(SMALL.size)
+    )
+    np.testing.assert_allclose(step.log_weights, from_scratch, rtol=0, atol=1e-9)
+    shuffled = list(data)
+    random.shuffle(shuffled)
+    reordered = Belief.prior(SMALL).observe_all([LabelledExecution.of(t, a) for t, a in shuffled])
+    np.testing.assert_allclose(reordered.probs, step.probs, rtol=0, atol=1e-12)
 
 
 def test_likelihood_values_follow_the_spec():
