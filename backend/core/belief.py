@@ -49,7 +49,6 @@ class Belief:
 
     space: HypothesisSpace
     log_weights: np.ndarray
-    n_observations: int = 0
 
     @staticmethod
     def prior(space: HypothesisSpace) -> "Belief":
@@ -59,7 +58,7 @@ class Belief:
     def observe_mask(self, sat_mask: int, acceptable: bool) -> "Belief":
         """The posterior after one execution with the given satisfied-clause mask and label."""
         ll = log_likelihood(self.space, sat_mask, acceptable)
-        return Belief(self.space, self.log_weights + ll, self.n_observations + 1)
+        return Belief(self.space, self.log_weights + ll)
 
     def observe(self, trace: Trace, acceptable: bool) -> "Belief":
         """The posterior after one labelled execution."""
@@ -127,7 +126,3 @@ class Belief:
 
         return similarity(self.space.domain.clause_space, self.map_mask, truth_mask)
 
-
-def total_variation(p: np.ndarray, q: np.ndarray) -> float:
-    """Total-variation distance between two distributions on the same support."""
-    return 0.5 * float(np.abs(np.asarray(p) - np.asarray(q)).sum())

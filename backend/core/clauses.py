@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
-from typing import Iterable, Mapping, Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -118,13 +118,6 @@ class ClauseSpace:
     def clauses_of(self, mask: int) -> list[Clause]:
         """The clauses in a mask, in bit order."""
         return [c for i, c in enumerate(self.clauses) if mask >> i & 1]
-
-    def mask_of(self, clauses: Iterable[Clause]) -> int:
-        """The mask of a collection of clauses."""
-        mask = 0
-        for clause in clauses:
-            mask |= self.bit(clause)
-        return mask
 
     def formula_of(self, mask: int) -> Formula:
         """The conjunction of a mask's clauses (true for the empty mask)."""

@@ -30,7 +30,6 @@ class ExecutionGraph:
     sat: np.ndarray
     depth: np.ndarray
     child: np.ndarray
-    index: dict[NodeKey, int]
 
     @property
     def n_nodes(self) -> int:
@@ -41,16 +40,6 @@ class ExecutionGraph:
     def levels(self) -> list[np.ndarray]:
         """Node indices grouped by depth, shallowest first."""
         return [np.flatnonzero(self.depth == d) for d in range(int(self.depth.max()) + 1)]
-
-    def node_of(self, history: tuple[str, ...] | list[str]) -> int:
-        """The node reached by a history of successful moves (repeats change nothing)."""
-        node = 0
-        props = self.domain.propositions
-        for event in history:
-            nxt = self.child[node, props.index(event)]
-            if nxt >= 0:
-                node = int(nxt)
-        return node
 
 
 @lru_cache(maxsize=None)
@@ -85,4 +74,4 @@ def execution_graph(domain: Domain) -> ExecutionGraph:
     )
     depth = np.array([len(ev) for ev in events], dtype=np.int64)
     child = np.array(children, dtype=np.int64).reshape(len(keys), len(props))
-    return ExecutionGraph(domain, keys, events, sat, depth, child, index)
+    return ExecutionGraph(domain, keys, events, sat, depth, child)
