@@ -37,7 +37,7 @@ class HypothesisSpace:
     unary_code: np.ndarray = field(init=False)
     ll_satisfied: np.ndarray = field(init=False)
     ll_violated: np.ndarray = field(init=False)
-    _ok_cache: dict[int, np.ndarray] = field(init=False, default_factory=dict)
+    _ok_cache: dict[bytes, np.ndarray] = field(init=False, default_factory=dict)
 
     def __post_init__(self) -> None:
         space = self.domain.clause_space
@@ -93,7 +93,7 @@ class HypothesisSpace:
 
     def _pattern_ok(self, sat_masks: np.ndarray) -> np.ndarray:
         """(patterns x executions) 0/1 matrix: does the execution satisfy every order clause of the pattern."""
-        key = hash(sat_masks.tobytes())
+        key = sat_masks.tobytes()  # exact key: a hash collision must not return another set's matrix
         cached = self._ok_cache.get(key)
         if cached is None:
             order_sat = sat_masks & ~np.uint64((1 << self.n_unary) - 1)
