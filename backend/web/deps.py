@@ -17,12 +17,13 @@ _experimenter_bearer = HTTPBearer(auto_error=False, scheme_name="ExperimenterTok
                                   description="the experimenter token or password from the server settings")
 
 
-def get_context(request: Request) -> Context:
+# Dependencies that only read the request are async: a sync one costs a trip through the thread pool.
+async def get_context(request: Request) -> Context:
     """The services context the app was built with."""
     return request.app.state.context
 
 
-def participant_token(
+async def participant_token(
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_participant_bearer)],
 ) -> str:
     """The bearer token of the participant making the request."""

@@ -5,6 +5,7 @@ from __future__ import annotations
 from typing import Annotated
 
 from fastapi import APIRouter, Body, Response, status
+from starlette.concurrency import run_in_threadpool
 
 from .. import services
 from .deps import ContextDep, IdempotencyKey, TokenDep
@@ -12,6 +13,9 @@ from .schemas import (AssessmentIn, ConsentIn, JoinIn, JoinOut, ParticipantState
                       QuestionnaireIn, StepGuard, error_responses)
 
 ERRORS = error_responses(400, 401, 409, 422)
+# The endpoints are async and hand only the services call to the thread pool: a plain `def` endpoint costs
+# a second hop for FastAPI's response validation (and one per sync dependency), measured at about a fifth
+# of the server's CPU per request (benchmarks/bench_server.py, docs/server.md).
 router = APIRouter(prefix="/api/v1", tags=["participant"], responses=ERRORS)
 
 
@@ -24,61 +28,65 @@ def _expect(guard: StepGuard | None) -> services.Expect:
 @router.post("/studies/{study_id}/join", response_model=JoinOut, status_code=status.HTTP_201_CREATED,
              responses={200: {"model": JoinOut, "description": "this external id joined before: the same participant"},
                         **error_responses(404)})
-def join(study_id: str, ctx: ContextDep, response: Response, body: JoinIn | None = None) -> dict:
+async def join(study_id: str, ctx: ContextDep, response: Response, body: JoinIn | None = None) -> dict:
     """Join an open study; with a prolific_pid seen before, the same participant is returned (200)."""
     body = body or JoinIn()
-    state, created = services.join_study(ctx, study_id, prolific_pid=body.prolific_pid,
-                                         external_study_id=body.study_id, external_session_id=body.session_id)
+    state, created = await run_in_threadpool(
+        services.join_study, ctx, study_id, prolific_pid=body.prolific_pid, external_study_id=body.study_id,
+        external_session_id=body.session_id)
     if not created:
         response.status_code = status.HTTP_200_OK
     return {"participant_id": state["participant_id"], "token": state["token"], "created": created, "state": state}
 
 
 @router.get("/me", response_model=ParticipantState)
-def get_state(ctx: ContextDep, token: TokenDep) -> dict:
+async def get_state(ctx: ContextDep, token: TokenDep) -> dict:
     """The participant's current state (records a robot execution that has finished meanwhile)."""
-    return services.participant_state(ctx, token)
+    return await run_in_threadpool(services.participant_state, ctx, token)
 
 
 @router.post("/me/consent", response_model=ParticipantState)
-def consent(body: ConsentIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
+async def consent(body: ConsentIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
     """Agree to (or decline) the consent text of the given version."""
-    return services.give_consent(ctx, token, agree=body.agree, consent_version=body.consent_version, key=key)
+    return await run_in_threadpool(services.give_consent, ctx, token, agree=body.agree,
+                                   consent_version=body.consent_version, key=key)
 
 
 @router.post("/me/instructions", response_model=ParticipantState)
-def instructions(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
+async def instructions(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
     """The instructions have been read; the first task starts."""
-    return services.finish_instructions(ctx, token, key=key)
+    return await run_in_threadpool(services.finish_instructions, ctx, token, key=key)
 
 
 @router.post("/me/placements", response_model=ParticipantState)
-def place(body: PlacementIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
+async def place(body: PlacementIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
     """Place one object on the table during a practice trial or demonstration."""
-    return services.place_object(ctx, token, obj=body.object, expect=_expect(body), key=key)
+    return await run_in_threadpool(services.place_object, ctx, token, obj=body.object, expect=_expect(body), key=key)
 
 
 @router.post("/me/demonstration/finish", response_model=ParticipantState)
-def finish(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None,
-           body: Annotated[StepGuard | None, Body()] = None) -> dict:
+async def finish(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None,
+                 body: Annotated[StepGuard | None, Body()] = None) -> dict:
     """End the current practice trial or demonstration (stopping before all objects are placed is allowed)."""
-    return services.finish_demonstration(ctx, token, expect=_expect(body), key=key)
+    return await run_in_threadpool(services.finish_demonstration, ctx, token, expect=_expect(body), key=key)
 
 
 @router.post("/me/execution", response_model=ParticipantState)
-def execute(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None,
-            body: Annotated[StepGuard | None, Body()] = None) -> dict:
+async def execute(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None,
+                  body: Annotated[StepGuard | None, Body()] = None) -> dict:
     """The robot carries out the current query or test; poll GET /me until execution.status is finished."""
-    return services.start_execution(ctx, token, expect=_expect(body), key=key)
+    return await run_in_threadpool(services.start_execution, ctx, token, expect=_expect(body), key=key)
 
 
 @router.post("/me/assessment", response_model=ParticipantState)
-def assess(body: AssessmentIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
+async def assess(body: AssessmentIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
     """Judge the robot's finished execution acceptable or not."""
-    return services.assess_execution(ctx, token, acceptable=body.acceptable, expect=_expect(body), key=key)
+    return await run_in_threadpool(services.assess_execution, ctx, token, acceptable=body.acceptable,
+                                   expect=_expect(body), key=key)
 
 
 @router.post("/me/questionnaire", response_model=ParticipantState)
-def questionnaire(body: QuestionnaireIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
+async def questionnaire(body: QuestionnaireIn, ctx: ContextDep, token: TokenDep,
+                        key: IdempotencyKey = None) -> dict:
     """Answer the questionnaire; the answer's state carries the completion code and redirect URL."""
-    return services.answer_questionnaire(ctx, token, answers=body.answers, key=key)
+    return await run_in_threadpool(services.answer_questionnaire, ctx, token, answers=body.answers, key=key)
