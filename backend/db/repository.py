@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import func, select
+from sqlalchemy import and_, bindparam, func, insert, select
 from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
@@ -64,9 +65,57 @@ def add_study(session: Session, *, values: dict[str, Any]) -> StudyRow:
 # ------------------------------------------------------------------ participants
 
 
+# The statements of every participant request are built once: building one costs more than running it.
+_PARTICIPANT_AND_STUDY_BY_TOKEN = (
+    select(ParticipantRow, StudyRow)
+    .join(StudyRow, StudyRow.id == ParticipantRow.study_id)
+    .where(ParticipantRow.token == bindparam("token"))
+)
+_REQUEST_BY_TOKEN = (
+    select(ParticipantRow, StudyRow, EventRow.kind, EventRow.request_digest)
+    .join(StudyRow, StudyRow.id == ParticipantRow.study_id)
+    .outerjoin(EventRow, and_(EventRow.participant_id == ParticipantRow.id,
+                              EventRow.client_event_id == bindparam("client_event_id")))
+    .where(ParticipantRow.token == bindparam("token"))
+)
+_TASK_SESSION = select(TaskSessionRow).where(
+    TaskSessionRow.participant_id == bindparam("participant_id"), TaskSessionRow.task_index == bindparam("task_index")
+)
+_EVENT_BY_CLIENT_ID = select(EventRow).where(
+    EventRow.participant_id == bindparam("participant_id"), EventRow.client_event_id == bindparam("client_event_id")
+)
+_INSERT_EVENT = insert(EventRow.__table__)
+
+
+@dataclass(frozen=True)
+class EarlierRequest:
+    """The event a client stored before under the same idempotency key: its kind and request digest."""
+
+    kind: str
+    request_digest: str | None
+
+
 def get_participant_by_token(session: Session, *, token: str) -> ParticipantRow | None:
     """The participant whose secret token this is."""
-    return session.scalars(select(ParticipantRow).where(ParticipantRow.token == token)).one_or_none()
+    found = get_participant_and_study(session, token=token)
+    return None if found is None else found[0]
+
+
+def get_participant_and_study(session: Session, *, token: str) -> tuple[ParticipantRow, StudyRow] | None:
+    """The participant whose secret token this is, with their study (one query)."""
+    row = session.execute(_PARTICIPANT_AND_STUDY_BY_TOKEN, {"token": token}).one_or_none()
+    return None if row is None else (row[0], row[1])
+
+
+def get_participant_for_request(
+    session: Session, *, token: str, client_event_id: str | None
+) -> tuple[ParticipantRow, StudyRow, EarlierRequest | None] | None:
+    """The participant of a token, their study and the earlier request under this idempotency key (one query)."""
+    row = session.execute(_REQUEST_BY_TOKEN, {"token": token, "client_event_id": client_event_id}).one_or_none()
+    if row is None:
+        return None
+    participant, study, kind, digest = row
+    return participant, study, None if kind is None else EarlierRequest(kind, digest)
 
 
 def get_participant(session: Session, *, study_id: str, participant_id: int) -> ParticipantRow | None:
@@ -122,10 +171,7 @@ def get_task_session(session: Session, *, participant_id: int, task_index: int) 
     row = cache.get((participant_id, task_index))
     if row is not None:
         return row
-    stmt = select(TaskSessionRow).where(
-        TaskSessionRow.participant_id == participant_id, TaskSessionRow.task_index == task_index
-    )
-    row = session.scalars(stmt).one_or_none()
+    row = session.scalars(_TASK_SESSION, {"participant_id": participant_id, "task_index": task_index}).one_or_none()
     if row is not None:
         cache[(participant_id, task_index)] = row
     return row
@@ -153,8 +199,8 @@ def task_sessions_of(session: Session, *, participant_id: int) -> list[TaskSessi
 
 def find_event_by_client_id(session: Session, *, participant_id: int, client_event_id: str) -> EventRow | None:
     """The event a client already submitted under this id, if any."""
-    stmt = select(EventRow).where(EventRow.participant_id == participant_id, EventRow.client_event_id == client_event_id)
-    return session.scalars(stmt).one_or_none()
+    params = {"participant_id": participant_id, "client_event_id": client_event_id}
+    return session.scalars(_EVENT_BY_CLIENT_ID, params).one_or_none()
 
 
 def append_event(
@@ -169,25 +215,26 @@ def append_event(
     step_index: int | None = None,
     client_event_id: str | None = None,
     request_digest: str | None = None,
-) -> EventRow:
-    """Append one event to a participant's log (sequence numbers are dense per participant)."""
+) -> None:
+    """Append one event to a participant's log (sequence numbers are dense per participant).
+
+    The row is inserted at once, without the ORM's unit of work (the hot path of every request); a clash
+    with a stored sequence number or idempotency key raises WriteConflict here rather than at commit."""
     participant.n_events = (participant.n_events or 0) + 1
     participant.last_activity_at = utcnow()
-    row = EventRow(
-        participant_id=participant.id,
-        seq=participant.n_events,
-        client_event_id=client_event_id,
-        request_digest=request_digest,
-        kind=kind,
-        task_index=task_index,
-        step_kind=step_kind,
-        step_index=step_index,
-        payload=payload,
-        app_version=app_version,
-        created_at=participant.last_activity_at,
-    )
-    session.add(row)
-    return row
+    values = {
+        "participant_id": participant.id, "seq": participant.n_events, "client_event_id": client_event_id,
+        "request_digest": request_digest, "kind": kind, "task_index": task_index, "step_kind": step_kind,
+        "step_index": step_index, "payload": payload, "app_version": app_version,
+        "created_at": participant.last_activity_at,
+    }
+    try:
+        with session.no_autoflush:  # the participant's row exists; its changes are flushed at commit
+            session.execute(_INSERT_EVENT, values)
+    except (IntegrityError, OperationalError) as exc:
+        session.rollback()
+        session.info.pop("task_sessions", None)
+        raise WriteConflict(str(exc).splitlines()[0]) from exc
 
 
 # ------------------------------------------------------------------ exports

@@ -6,14 +6,14 @@ import hashlib
 import json
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import lru_cache
 from typing import Any
 
 from ..core import session as core
 from ..core.domain import DINNER_OBJECTS, get_domain
 from ..db import repository as repo
-from ..db.tables import EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
+from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
 from ..sim.recordings import RecordingId
 from .context import Context, app_version, commit, iso
@@ -163,12 +163,14 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
 
 
 def participant_and_study(s: Any, token: str) -> tuple[ParticipantRow, StudyRow]:
-    participant = repo.get_participant_by_token(s, token=token) if token else None
-    if participant is None:
-        raise NotAuthenticated("unknown participant token; use the link you were given (Authorization: Bearer <token>)")
-    study = repo.get_study(s, study_id=participant.study_id)
-    assert study is not None  # foreign key
-    return participant, study
+    found = repo.get_participant_and_study(s, token=token) if token else None
+    if found is None:
+        raise _unknown_token()
+    return found
+
+
+def _unknown_token() -> NotAuthenticated:
+    return NotAuthenticated("unknown participant token; use the link you were given (Authorization: Bearer <token>)")
 
 
 @dataclass
@@ -190,17 +192,18 @@ class Action:
     study: StudyRow
     key: str | None
     digest: str | None
-    events: list[EventRow] = field(default_factory=list)
+    n_logged: int = 0
 
     def log(self, kind: str, payload: dict[str, Any], *, task_index: int | None = None,
             step_kind: str | None = None, step_index: int | None = None) -> None:
         """Append an event; the first one of the request stores the client's key."""
-        first = not self.events
-        self.events.append(repo.append_event(
+        first = self.n_logged == 0
+        self.n_logged += 1
+        repo.append_event(
             self.s, participant=self.participant, kind=kind, payload=payload, app_version=app_version(),
             task_index=task_index, step_kind=step_kind, step_index=step_index,
             client_event_id=self.key if first else None, request_digest=self.digest if first else None,
-        ))
+        )
 
 
 def _digest(action: str, body: dict[str, Any]) -> str:
@@ -212,15 +215,16 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
     """Run one participant action in a write transaction: replay check, change, log, commit, new state."""
     digest = _digest(action, body)
     with ctx.db.write() as s:
-        participant, study = participant_and_study(s, token)
-        if key is not None:
-            previous = repo.find_event_by_client_id(s, participant_id=participant.id, client_event_id=key)
-            if previous is not None:
-                if previous.request_digest == digest:
-                    return state_view(s, participant, study, replayed=True)
-                raise Conflict(f"Idempotency-Key {key!r} was already used for a different request "
-                               f"({previous.kind}); use a new key for a new action",
-                               state=state_view(s, participant, study))
+        found = repo.get_participant_for_request(s, token=token, client_event_id=key) if token else None
+        if found is None:
+            raise _unknown_token()
+        participant, study, earlier = found
+        if earlier is not None:
+            if earlier.request_digest == digest:
+                return state_view(s, participant, study, replayed=True)
+            raise Conflict(f"Idempotency-Key {key!r} was already used for a different request "
+                           f"({earlier.kind}); use a new key for a new action",
+                           state=state_view(s, participant, study))
         try:
             run(Action(ctx, s, participant, study, key, digest))
             repo.commit(s)

@@ -71,8 +71,8 @@ def test_two_writers_of_one_participant_cannot_both_win(db: Database) -> None:
         pb = repo.get_participant_by_token(b, token="tok")
         repo.append_event(a, participant=pa, kind="x", payload={}, app_version="t")
         repo.commit(a)
-        repo.append_event(b, participant=pb, kind="y", payload={}, app_version="t")
-        with pytest.raises(repo.WriteConflict):
+        with pytest.raises(repo.WriteConflict):  # when it writes its event (SQLite) or commits
+            repo.append_event(b, participant=pb, kind="y", payload={}, app_version="t")
             repo.commit(b)
     with db.read() as s:
         p = repo.get_participant_by_token(s, token="tok")
@@ -90,9 +90,8 @@ def test_a_client_event_id_is_unique_per_participant(db: Database) -> None:
         assert repo.find_event_by_client_id(s, participant_id=p.id, client_event_id="k").kind == "x"
         # Bypass the service's check: the database itself refuses a second event with the same key.
         p.n_events += 5
-        repo.append_event(s, participant=p, kind="y", payload={}, app_version="t", client_event_id="k")
         with pytest.raises(repo.WriteConflict):
-            repo.commit(s)
+            repo.append_event(s, participant=p, kind="y", payload={}, app_version="t", client_event_id="k")
 
 
 def test_deleting_a_study_cascades_to_its_participants(db: Database) -> None:
