@@ -226,7 +226,7 @@ def position(state: SessionState) -> tuple[StepKind, int, int]:
     return kind, (state.count(kind) if kind != "done" else 0), totals[kind]
 
 
-@lru_cache(maxsize=256)  # states are immutable values: the server asks for the same step several times
+@lru_cache(maxsize=4096)  # states are immutable values: the server asks for the same step several times
 def next_step(state: SessionState) -> Step:
     """What happens next; robot turns come with the robot's execution (deterministic per seed)."""
     c = state.config

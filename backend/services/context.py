@@ -14,6 +14,7 @@ from ..db import repository as repo
 from ..db.engine import Database
 from ..errors import Conflict
 from ..robot import Robot, make_robot
+from .planning import Planner
 
 
 @lru_cache(maxsize=1)
@@ -57,12 +58,13 @@ class TabLeases:
 
 @dataclass
 class Context:
-    """What every action needs: the database, the robot and the settings (plus the page's tab leases)."""
+    """What every action needs: the database, the robot and the settings (plus tab leases and the planner)."""
 
     db: Database
     robot: Robot
     settings: Settings
     tabs: TabLeases = field(default_factory=TabLeases)
+    planner: Planner = field(default_factory=Planner)
 
     @staticmethod
     def from_settings(settings: Settings) -> "Context":

@@ -7,7 +7,6 @@ import json
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass
-from functools import lru_cache
 from typing import Any
 
 from ..core import session as core
@@ -17,6 +16,7 @@ from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
 from ..sim.recordings import RecordingId
 from .context import Context, app_version, commit, iso
+from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
 
@@ -79,13 +79,6 @@ def sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskSe
     return True
 
 
-@lru_cache(maxsize=2048)
-def step_of(state_json: str) -> tuple[core.SessionState, core.Step]:
-    """The core state and its next step (cached: planning a query costs milliseconds, states repeat)."""
-    state = core.SessionState.from_json(state_json)
-    return state, core.next_step(state)
-
-
 def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed: bool = False) -> dict[str, Any]:
     """What a participant (or scripted teacher) sees: stage, current step, robot and questionnaire."""
     out: dict[str, Any] = {
@@ -106,19 +99,19 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         out["task"] = {"index": participant.task_index, "total": len(study.tasks), "name": task["name"],
                        "instructions": task["instructions"], "key": task["key"]}
         if ts is not None:
-            _, step = step_of(ts.state_json)
-            out["step"] = {"kind": step.kind, "index": step.index, "total": step.total}
-            if step.kind in ("practice", "demonstration"):
+            kind, index, total = position_of(ts.state_json)
+            out["step"] = {"kind": kind, "index": index, "total": total}
+            if kind in ("practice", "demonstration"):
                 out["demonstration"] = {"placed": list(ts.demo_placed),
                                         "labels": ts.demo_trace[-1] if ts.demo_trace else [],
                                         "trace": list(ts.demo_trace)}
-            elif step.kind in ("query", "test"):
+            elif kind in ROBOT_TURNS:
                 ex = ts.execution
-                if ex is not None and (ex["kind"], ex["index"]) == (step.kind, step.index):
+                if ex is not None and (ex["kind"], ex["index"]) == (kind, index):
                     out["execution"] = {"kind": ex["kind"], "index": ex["index"], "status": ex["status"],
                                         "events": ex["events"], "trace": ex.get("trace")}
                 else:
-                    out["execution"] = {"kind": step.kind, "index": step.index, "status": "not_started",
+                    out["execution"] = {"kind": kind, "index": index, "status": "not_started",
                                         "events": None, "trace": None}
     elif participant.stage == "questionnaire":
         out["questionnaire"] = study.questionnaire
@@ -134,7 +127,7 @@ def _learned(s: Any, participant: ParticipantRow) -> list[dict[str, Any]]:
     space = get_domain("dinner").clause_space
     out = []
     for ts in repo.task_sessions_of(s, participant_id=participant.id):
-        b = core.belief(core.SessionState.from_json(ts.state_json))
+        b = core.belief(session_of(ts.state_json))
         out.append({"task_index": ts.task_index, "map_formula": space.text_of(b.map_mask),
                     "map_description": space.describe(b.map_mask)})
     return out
@@ -153,6 +146,8 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
         ts = current_task(s, participant)
         needs_write = ts is not None and ts.execution is not None and ts.execution["status"] == "running"
         if not needs_write:
+            if ts is not None and ts.execution is None:
+                ctx.planner.plan_ahead(ts.state_json)  # e.g. after a restart, before the participant asks
             return state_view(s, participant, study)
     with ctx.db.write() as s:
         participant, study = participant_and_study(s, token)
@@ -193,6 +188,7 @@ class Action:
     key: str | None
     digest: str | None
     n_logged: int = 0
+    plan_ahead: str | None = None  # a stored state whose robot turn can be planned once this commits
 
     def log(self, kind: str, payload: dict[str, Any], *, task_index: int | None = None,
             step_kind: str | None = None, step_index: int | None = None) -> None:
@@ -226,8 +222,11 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
                            f"({earlier.kind}); use a new key for a new action",
                            state=state_view(s, participant, study))
         try:
-            run(Action(ctx, s, participant, study, key, digest))
+            action = Action(ctx, s, participant, study, key, digest)
+            run(action)
             repo.commit(s)
+            if action.plan_ahead is not None:
+                ctx.planner.plan_ahead(action.plan_ahead)
             return state_view(s, participant, study)
         except Conflict as exc:
             conflict = exc

@@ -11,6 +11,7 @@ from ..db import repository as repo
 from ..db.tables import TaskSessionRow, utcnow
 from ..errors import Conflict, InvalidInput
 from .context import Context
+from .planning import ROBOT_TURNS, session_of
 from .state import (
     Action,
     Expect,
@@ -19,7 +20,6 @@ from .state import (
     robot_key,
     save_recording,
     session_config,
-    step_of,
     sync_execution,
 )
 
@@ -36,11 +36,12 @@ def begin_task(a: Action, task_index: int) -> None:
 
 
 def _teaching(a: Action, expect: Expect, kinds: tuple[str, ...]) -> tuple[TaskSessionRow, core.SessionState, core.Step]:
-    """The current task session and step; Conflict unless the step is one of kinds and matches expect."""
+    """The current task session and step (unplanned); Conflict unless the step is one of kinds and matches expect."""
     require_stage(a, "task")
     ts = repo.get_task_session(a.s, participant_id=a.participant.id, task_index=a.participant.task_index)
     assert ts is not None
-    state, step = step_of(ts.state_json)
+    state = session_of(ts.state_json)
+    step = core.Step(*core.position(state))
     here = f"{step.kind} {step.index + 1} of {step.total} in task {a.participant.task_index + 1}"
     if expect.task_index is not None and expect.task_index != a.participant.task_index:
         raise Conflict(f"this request is for task {expect.task_index + 1}, but the session is at {here}")
@@ -113,6 +114,7 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
         if ex is not None and (ex["kind"], ex["index"]) == (step.kind, step.index):
             sync_execution(a.ctx, a.s, a.participant, ts)
             return  # a second click on "run": the same execution is already under way or done
+        step = a.ctx.planner.step(ts.state_json)
         assert step.robot_execution is not None
         events = list(step.robot_execution.events)
         a.ctx.robot.execute(robot_key(a.participant, ts.task_index), events)
@@ -154,6 +156,8 @@ def assess_execution(ctx: Context, token: str, *, acceptable: bool | None, expec
 def _advance(a: Action, ts: TaskSessionRow, new_state: core.SessionState) -> None:
     """Store the core's new state; after the last step of a task, go to the next task or the questionnaire."""
     ts.state_json = new_state.to_json()
+    if new_state.phase in ROBOT_TURNS:
+        a.plan_ahead = ts.state_json
     if new_state.phase != "done":
         return
     a.log("task_finished", {}, task_index=ts.task_index)

@@ -9,7 +9,8 @@ from typing import Any
 from ..errors import Conflict, InvalidInput
 from ..robot import ViewingRobot
 from .context import Context
-from .state import Expect, current_task, participant_and_study, robot_key, step_of
+from .planning import position_of
+from .state import Expect, current_task, participant_and_study, robot_key
 from .teaching import place_object
 
 log = logging.getLogger(__name__)
@@ -33,21 +34,21 @@ def open_viewer(ctx: Context, token: str) -> int | None:
         ts = current_task(s, participant)
         if ts is None:
             return None
-        _, step = step_of(ts.state_json)
+        kind, index, _ = position_of(ts.state_json)
         key = robot_key(participant, ts.task_index)
         on_click: Callable[[str], None] | None = None
-        if step.kind in ("practice", "demonstration"):
+        if kind in ("practice", "demonstration"):
             if ts.demo_trace and robot.placed(key) != tuple(ts.demo_placed):
                 robot.reset(key)
                 for obj in ts.demo_placed:
                     robot.place(key, obj)
-            expect = Expect(ts.task_index, step.kind, step.index)
+            expect = Expect(ts.task_index, kind, index)
 
             def on_click(obj: str) -> None:
                 _place_clicked(ctx, token, obj, expect)
         else:
             ex = ts.execution
-            if (ex is not None and ex["status"] == "finished" and (ex["kind"], ex["index"]) == (step.kind, step.index)
+            if (ex is not None and ex["status"] == "finished" and (ex["kind"], ex["index"]) == (kind, index)
                     and robot.progress(key) is None):
                 robot.execute(key, ex["events"])  # show the finished execution again after a restart
         return robot.open_view(key, on_click)

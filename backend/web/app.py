@@ -28,6 +28,7 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
         yield
+        ctx.planner.shutdown()
         shutdown = getattr(ctx.robot, "shutdown", None)  # the MuJoCo robot stops its viser servers
         if shutdown is not None:
             shutdown()
