@@ -41,12 +41,13 @@ def flush(session: Session) -> None:
 # ------------------------------------------------------------------ studies
 
 
+_STUDY = select(StudyRow).where(StudyRow.id == bindparam("study_id"))
+_STUDY_FOR_UPDATE = _STUDY.with_for_update()
+
+
 def get_study(session: Session, *, study_id: str, for_update: bool = False) -> StudyRow | None:
     """A study by id (locked for update where the database supports it)."""
-    stmt = select(StudyRow).where(StudyRow.id == study_id)
-    if for_update:
-        stmt = stmt.with_for_update()
-    return session.scalars(stmt).one_or_none()
+    return session.scalars(_STUDY_FOR_UPDATE if for_update else _STUDY, {"study_id": study_id}).one_or_none()
 
 
 def list_studies(session: Session) -> list[StudyRow]:
@@ -144,17 +145,22 @@ def list_participants(session: Session, *, study_id: str) -> list[ParticipantRow
     return list(session.scalars(stmt))
 
 
+_COUNT_BY_CONDITION = (
+    select(ParticipantRow.condition, func.count())
+    .where(
+        ParticipantRow.study_id == bindparam("study_id"),
+        (ParticipantRow.stage == "done") | (
+            (ParticipantRow.stage != "withdrawn") & (ParticipantRow.last_activity_at >= bindparam("active_since"))
+        ),
+    )
+    .group_by(ParticipantRow.condition)
+)
+
+
 def count_by_condition(session: Session, *, study_id: str, active_since: datetime) -> dict[str, int]:
     """Participants per condition who finished or whose last request came after active_since."""
-    counted = (ParticipantRow.stage == "done") | (
-        (ParticipantRow.stage != "withdrawn") & (ParticipantRow.last_activity_at >= active_since)
-    )
-    stmt = (
-        select(ParticipantRow.condition, func.count())
-        .where(ParticipantRow.study_id == study_id, counted)
-        .group_by(ParticipantRow.condition)
-    )
-    return {condition: int(n) for condition, n in session.execute(stmt)}
+    params = {"study_id": study_id, "active_since": active_since}
+    return {condition: int(n) for condition, n in session.execute(_COUNT_BY_CONDITION, params)}
 
 
 def touch(participant: ParticipantRow) -> None:
