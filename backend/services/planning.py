@@ -53,7 +53,15 @@ class Planner:
         self._closed = False
 
     def plan_ahead(self, state_json: str) -> None:
-        """Start planning this state's robot turn in the background, unless it has none or is planned."""
+        """Start planning this state's robot turn in the background, unless it has none or is planned.
+
+        Never raises: it runs after an action is committed, and planning ahead only saves time."""
+        try:
+            self._plan_ahead(state_json)
+        except Exception:  # noqa: BLE001 - the request that needs the plan makes it and reports any error
+            log.warning("could not start planning ahead", exc_info=True)
+
+    def _plan_ahead(self, state_json: str) -> None:
         if position_of(state_json)[0] not in ROBOT_TURNS:
             return
         with self._lock:

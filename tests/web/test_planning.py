@@ -118,3 +118,11 @@ def test_the_server_plans_the_query_while_the_participant_reads_and_the_executio
     planned = step_of(plan.calls[0][0])
     assert response.json()["execution"]["events"] == list(planned.robot_execution.events)
     assert len(plan.calls) == 1  # the request used the plan made ahead
+
+
+def test_planning_ahead_never_fails_the_action_that_stored_the_state() -> None:
+    planner = Planner()
+    try:
+        planner.plan_ahead("{not a session")  # logged, not raised: the action was already committed
+    finally:
+        planner.shutdown()
