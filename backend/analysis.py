@@ -73,7 +73,7 @@ def _step_summaries(state_json: str, truth_formula: str | None, top: int) -> tup
     truth = None if truth_formula is None else space.mask_of_formula(truth_formula)
     records: list[core.Record | None] = [None, *state.learning_records]
     out = []
-    for step, (record, belief) in enumerate(zip(records, core.beliefs_by_step(state))):
+    for step, (record, belief) in enumerate(zip(records, core.beliefs_by_step(state), strict=True)):
         out.append({
             "step": step,
             "record": None if record is None else {

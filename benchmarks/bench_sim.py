@@ -53,7 +53,7 @@ def _watch(ports: list[int], ready: mp.Event, stop: mp.Event, results: mp.Queue)
 
     async def main() -> list[list[float]]:
         stamps: list[list[float]] = [[] for _ in ports]
-        tasks = [asyncio.create_task(client(p, s)) for p, s in zip(ports, stamps)]
+        tasks = [asyncio.create_task(client(p, s)) for p, s in zip(ports, stamps, strict=True)]
         while len(connected) < len(ports):
             await asyncio.sleep(0.05)
         ready.set()
@@ -85,7 +85,7 @@ def _naive_ms_per_frame(frames: int = 150) -> float:
             world.data.ctrl[world.layout.arm_ctrl[0]] = 0.5 * np.sin(i / 10)
             mujoco.mj_step(world.model, world.data, steps)
             poses = world.body_poses()
-            for name, pose in zip(world.recording.bodies, poses):
+            for name, pose in zip(world.recording.bodies, poses, strict=True):
                 view._frames[name].position = pose[:3] + 1e-3 * (i % 2)  # force a send, as naive code does
                 view._frames[name].wxyz = pose[3:]
         return (time.perf_counter() - started) / frames * 1000

@@ -95,7 +95,7 @@ def load_authors_demo(path: str | Path, domain: Domain) -> LabelledExecution:
         if "trace_slices" in data:
             return load_authors_query(path, domain, acceptable=bool(data.get("inferred_label", False)))
         per_object = data["Data"]["WaypointPredicates"]
-        rows = [list(column) for column in zip(*per_object)]
+        rows = [list(column) for column in zip(*per_object, strict=True)]
         return LabelledExecution.of(persistent_trace(rows, domain), bool(data.get("Label", True)))
     except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
         raise InputError(f"{path}: not an authors' demonstration file ({exc})") from None
@@ -144,7 +144,7 @@ def load_authors_posterior(path: str | Path, domain: Domain) -> dict[int, float]
     data = json.loads(Path(path).read_text())
     names = _authors_names(domain)
     out: dict[int, float] = {}
-    for formula, p in zip(data["support"], data["probs"]):
+    for formula, p in zip(data["support"], data["probs"], strict=True):
         mask = authors_formula_mask(formula, domain.clause_space, names)
         out[mask] = out.get(mask, 0.0) + float(p)
     return out

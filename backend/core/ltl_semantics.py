@@ -61,13 +61,13 @@ def _truth_vector(formula: Formula, trace: Trace) -> list[bool]:
         return [not v for v in _truth_vector(formula.arg, trace)]
     if isinstance(formula, And):
         vectors = [_truth_vector(arg, trace) for arg in formula.args]
-        return [all(column) for column in zip(*vectors)]
+        return [all(column) for column in zip(*vectors, strict=True)]
     if isinstance(formula, Or):
         vectors = [_truth_vector(arg, trace) for arg in formula.args]
-        return [any(column) for column in zip(*vectors)]
+        return [any(column) for column in zip(*vectors, strict=True)]
     if isinstance(formula, Implies):
         left, right = _truth_vector(formula.left, trace), _truth_vector(formula.right, trace)
-        return [(not a) or b for a, b in zip(left, right)]
+        return [(not a) or b for a, b in zip(left, right, strict=True)]
     if isinstance(formula, (Next, WeakNext)):
         arg = _truth_vector(formula.arg, trace)
         last = isinstance(formula, WeakNext)

@@ -81,7 +81,7 @@ def _chain_structures(n: int, p_new: float) -> dict[PairSet, float]:
                 continue
             pairs: set[tuple[int, int]] = set()
             block: list[int] = [perm[0]] if n else []
-            for element, cut in zip(perm[1:], cuts):
+            for element, cut in zip(perm[1:], cuts, strict=True):
                 if cut:
                     block = []
                 pairs.update((earlier, element) for earlier in block)

@@ -44,8 +44,8 @@ def _title(settings: ExperimentSettings) -> str:
 def plot_by_n_query(summary: Sequence[SummaryRow], settings: ExperimentSettings, statistic: str, stem: Path) -> list[Path]:
     """Entropy (left) and similarity (right) against n_query, one line per protocol with CI bars."""
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    offsets = dict(zip(PROTOCOLS, (-0.08, 0.0, 0.08)))  # dodge so the CI bars do not overlap
-    for ax, (metric, label) in zip(axes, PANELS):
+    offsets = dict(zip(PROTOCOLS, (-0.08, 0.0, 0.08), strict=True))  # dodge so the CI bars do not overlap
+    for ax, (metric, label) in zip(axes, PANELS, strict=True):
         for protocol in PROTOCOLS:
             rows = [r for r in summary if r.protocol == protocol]
             if not rows:
@@ -69,7 +69,7 @@ def plot_learning_curve(rows: Sequence[dict[str, str]], settings: ExperimentSett
     """Mean similarity and entropy against executions seen (largest n_query), 95% CI bands."""
     n_query = settings.max_n_query
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
-    for ax, (metric, label) in zip(axes[::-1], PANELS):
+    for ax, (metric, label) in zip(axes[::-1], PANELS, strict=True):
         for p, protocol in enumerate(PROTOCOLS):
             by_step: dict[int, list[float]] = {}
             for row in rows:
@@ -80,7 +80,7 @@ def plot_learning_curve(rows: Sequence[dict[str, str]], settings: ExperimentSett
             steps = sorted(by_step)
             stats = [bootstrap_ci(np.array(by_step[k]), "mean", group_rng(settings.seed, _CURVE_STREAM, p, k))
                      for k in steps]
-            mean, low, high = (np.array(v) for v in zip(*stats))
+            mean, low, high = (np.array(v) for v in zip(*stats, strict=True))
             ax.plot(steps, mean, marker="o", color=COLORS[protocol], label=LABELS[protocol])
             ax.fill_between(steps, low, high, color=COLORS[protocol], alpha=0.2)
         ax.axvline(settings.n_demonstrations, color="grey", linestyle=":", linewidth=1)

@@ -94,7 +94,7 @@ def _belief_rows(s: Any, study: StudyRow) -> Iterator[list[Any]]:
         state = core.SessionState.from_json(ts.state_json)
         truth = truth_mask(study.tasks[ts.task_index])
         records: list[core.Record | None] = [None, *state.learning_records]
-        for step, (record, b) in enumerate(zip(records, core.beliefs_by_step(state))):
+        for step, (record, b) in enumerate(zip(records, core.beliefs_by_step(state), strict=True)):
             top = b.top(5)
             cells: list[Any] = []
             for i in range(5):

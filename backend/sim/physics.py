@@ -250,7 +250,7 @@ class MujocoWorld:
         """Track the set-points, fire grasp/release events, let the objects settle; yield frames."""
         lay, d = self.layout, self.data
         for arm_q, finger_q, event in segments:
-            for q, f in zip(arm_q, finger_q):
+            for q, f in zip(arm_q, finger_q, strict=True):
                 d.ctrl[lay.arm_ctrl] = q
                 d.ctrl[lay.finger_ctrl] = f
                 if self._step():

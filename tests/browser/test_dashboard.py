@@ -66,7 +66,7 @@ def test_experimenter_follows_a_session_in_the_dashboard(server_factory: Any, br
     # The experimenter logs in and sees the participant in the live table.
     page.fill("#token", EXPERIMENTER_TOKEN)
     page.click("form.login button[type=submit]")
-    page.click(f"#studies a:has-text('Browser study')")
+    page.click("#studies a:has-text('Browser study')")
     row = page.locator(f"#participants tr[data-participant='{pid}']")
     row.wait_for()
     assert "done" in row.text_content() and run.completion_code in row.text_content() and "PB1" in row.text_content()

@@ -64,7 +64,7 @@ def _click_object(page, server, key: str, obj: str) -> None:
 
 
 def _demonstrate_by_clicking(page, server, key: str, objects: list[str]) -> None:
-    for i, obj in enumerate(objects):
+    for obj in objects:
         placed_before = page.locator(".placed").inner_text()
         assert obj.replace("_", " ") not in placed_before
         for attempt in range(3):  # software WebGL: a click before the scene has drawn can miss

@@ -20,7 +20,7 @@ def naive_posterior(space, data):
     """Per-hypothesis loop with the spec's likelihood and textbook LTLf evaluation."""
     eps = math.exp(space.log_epsilon)
     weights = []
-    for mask, log_prior in zip(space.masks, space.log_prior):
+    for mask, log_prior in zip(space.masks, space.log_prior, strict=True):
         formula = space.domain.clause_space.formula_of(int(mask))
         n = bin(int(mask)).count("1")
         w = math.exp(log_prior)
@@ -49,7 +49,7 @@ def test_posterior_equals_naive_loop(data):
 @given(labelled, traces())
 def test_p_acceptable_equals_naive_sum(data, trace):
     belief = Belief.prior(SMALL).observe_all([LabelledExecution.of(t, a) for t, a in data])
-    naive = sum(p for mask, p in zip(SMALL.masks, belief.probs)
+    naive = sum(p for mask, p in zip(SMALL.masks, belief.probs, strict=True)
                 if evaluate(SMALL.domain.clause_space.formula_of(int(mask)), trace))
     assert belief.p_acceptable(trace) == pytest.approx(naive, abs=1e-12)
 
@@ -100,7 +100,7 @@ def test_similarity_vectorised_equals_scalar():
     cs = SMALL.domain.clause_space
     truth = cs.mask_of_formula("F(a) & (!b U a) & G(!c)")
     sims = similarities(SMALL, truth)
-    for mask, s in zip(SMALL.masks[::7], sims[::7]):
+    for mask, s in zip(SMALL.masks[::7], sims[::7], strict=True):
         assert s == pytest.approx(similarity(cs, int(mask), truth))
     assert similarity(cs, truth, truth) == 1.0
 

@@ -87,7 +87,7 @@ def test_faithful_2020_prior_is_mostly_self_contradictory():
 def test_forest_orders_children_before_ancestors():
     structures = order_structures(PriorSpec("forest", p_root=0.0), 3)
     # with no extra roots, every forest is a single tree: a chain or a star
-    for pairs, p in structures.items():
+    for pairs in structures:
         elements = {x for pair in pairs for x in pair}
         assert elements == {0, 1, 2}
     assert sum(structures.values()) == pytest.approx(1.0)

@@ -66,8 +66,8 @@ def test_active_query_equals_brute_force(seed):
     query, q = active_query(belief, np.random.default_rng(seed))
     score = np.abs(2 * brute_force_p(belief) - 1)
     best = score <= score.min() + 1e-12
-    shortest = min(len(e) for e, b in zip(ALL_EXECUTIONS, best) if b)
-    allowed = {e for e, b in zip(ALL_EXECUTIONS, best) if b and len(e) == shortest}
+    shortest = min(len(e) for e, b in zip(ALL_EXECUTIONS, best, strict=True) if b)
+    allowed = {e for e, b in zip(ALL_EXECUTIONS, best, strict=True) if b and len(e) == shortest}
     assert query.events in allowed
     assert abs(2 * q - 1) == pytest.approx(score.min(), abs=1e-12)
 
@@ -147,7 +147,7 @@ def test_exact_planner_equals_value_iteration_on_the_stochastic_product():
     p = belief.probs
 
     def stop_reward(residuals):
-        return sum(pi * (1 if accepts_at_end(r) else -1) for pi, r in zip(p, residuals))
+        return sum(pi * (1 if accepts_at_end(r) else -1) for pi, r in zip(p, residuals, strict=True))
 
     start = (None, tuple(progress(f, frozenset()) for f in formulas))
     states, frontier = {start}, [start]

@@ -42,7 +42,7 @@ def test_ik_is_vectorised(scene):
     _, layout = scene
     targets = np.array([[0.4, 0.2, 0.5], [0.5, -0.3, 0.45], [0.3, 0.0, 0.6]])
     batch = arm.solve_ik(layout.arm, targets, np.array([0.0, 1.0, 2.0]))
-    singles = [arm.solve_ik(layout.arm, t, y) for t, y in zip(targets, [0.0, 1.0, 2.0])]
+    singles = [arm.solve_ik(layout.arm, t, y) for t, y in zip(targets, [0.0, 1.0, 2.0], strict=True)]
     np.testing.assert_allclose(batch, np.array(singles))
 
 

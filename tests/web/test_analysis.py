@@ -71,7 +71,7 @@ def test_history_holds_every_step_and_the_belief_after_each(app_client: Any) -> 
         (d["kind"], d["index"], d["objects"], d["acceptable"]) for d in done]
     assert [x["status"] for x in executions] == ["finished"] * 3 + ["assessed"] * 6
     assert [x["by"] for x in executions] == ["participant"] * 3 + ["robot"] * 6
-    for x, d in zip(executions, done):
+    for x, d in zip(executions, done, strict=True):
         expected_trace = d.get("trace") or [sorted(d["objects"][:k]) for k in range(len(d["objects"]) + 1)]
         assert x["trace"] == expected_trace
     # Learning steps: demonstrations and labelled queries only, numbered in order.

@@ -23,7 +23,7 @@ def test_round_trip_keeps_values_and_no_cell_starts_like_a_formula(rows: list[li
     text = "".join(csv_lines(rows))
     back = list(csv.reader(io.StringIO(text, newline="")))
     assert len(back) == len(rows)
-    for got_row, row in zip(back, rows):
-        for got, value in zip(got_row, row):
+    for got_row, row in zip(back, rows, strict=True):
+        for got, value in zip(got_row, row, strict=True):
             assert not got.startswith(FORMULA_STARTS)
             assert got == ("'" + value if value.startswith(FORMULA_STARTS) else value)

@@ -121,6 +121,7 @@ def test_a_rest_session_with_the_mujoco_robot_records_every_step(mujoco_client):
         while (me := mujoco_client.get("/api/v1/me", headers=h).json())["execution"]["status"] != "finished":
             assert time.monotonic() < deadline, "the robot did not finish within 60 s"
             time.sleep(0.1)
+        assert me["execution"]["kind"] == kind
         events, trace = me["execution"]["events"], me["execution"]["trace"]
         assert len(trace) == len(events) + 1 and set(trace[-1]) == set(events)  # MuJoCo set each one in its slot
         assert mujoco_client.post("/api/v1/me/assessment", json={"acceptable": True}, headers=h).status_code == 200
