@@ -83,7 +83,8 @@ def _step_summaries(state_json: str, truth_formula: str | None, top: int) -> tup
             "map_similarity": None if truth is None else belief.map_similarity(truth),
             "map_formula": space.text_of(belief.map_mask),
             "map_description": space.describe(belief.map_mask),
-            "top": [{"formula": space.text_of(m), "description": space.describe(m), "p": p} for m, p in belief.top(top)],
+            "top": [{"formula": space.text_of(m), "description": space.describe(m), "p": p}
+                    for m, p in belief.top(top)],
         })
     return tuple(out)
 
@@ -186,7 +187,8 @@ def _curve_points(series: list[dict[str, Any]]) -> list[dict[str, Any]]:
     points = []
     for step in range(longest):
         entropies = [x["entropy"][step] for x in series if step < len(x["entropy"])]
-        sims = [x["similarity"][step] for x in series if step < len(x["similarity"]) and x["similarity"][step] is not None]
+        sims = [x["similarity"][step] for x in series
+                if step < len(x["similarity"]) and x["similarity"][step] is not None]
         points.append({
             "step": step, "n": len(entropies), "mean_entropy": statistics.fmean(entropies),
             "n_similarity": len(sims), "median_similarity": statistics.median(sims) if sims else None,
@@ -265,7 +267,8 @@ def table_layout() -> dict[str, Any]:
             "shape": "disc" if abs(half_x - half_y) < 0.01 else "bar",
             "half_x": half_x, "half_y": half_y,
             "start": {"x": float(body.pos[0]), "y": float(body.pos[1]), "yaw": _quat_yaw(*map(float, body.quat))},
-            "slot": {"x": float(layout.slot[obj].pos[0]), "y": float(layout.slot[obj].pos[1]), "yaw": layout.slot[obj].yaw},
+            "slot": {"x": float(layout.slot[obj].pos[0]), "y": float(layout.slot[obj].pos[1]),
+                     "yaw": layout.slot[obj].yaw},
         }
     return {"tables": tables, "robot": {"x": 0.0, "y": 0.0, "radius": float(pedestal.size[0])}, "objects": objects}
 

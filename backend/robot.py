@@ -59,7 +59,10 @@ class Robot(Protocol):
         ...
 
     def save_recording(self, key: str, name: str) -> None:
-        """Keep the table's motion since its last reset as `name` (participant-<id>/task-<i>/<kind>-<j>), if it records any."""
+        """Keep the table's motion since its last reset as `name`, if it records any.
+
+        `name` has the form participant-<id>/task-<i>/<kind>-<j>.
+        """
         ...
 
     def close(self, key: str) -> None:
@@ -131,7 +134,8 @@ class TraceRobot:
         """Start an execution; its trace is revealed one placement per seconds_per_object."""
         trace = tuple(self.domain.trace_of(tuple(events)))
         with self._lock:
-            self._tables[key] = _Table(placed=list(events), execution=tuple(events), trace=trace, started=time.monotonic())
+            self._tables[key] = _Table(placed=list(events), execution=tuple(events), trace=trace,
+                                       started=time.monotonic())
 
     def progress(self, key: str) -> RobotProgress | None:
         """The execution's labels so far and whether it has finished."""

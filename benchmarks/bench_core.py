@@ -80,7 +80,8 @@ def main() -> None:
     targets = {"incremental update (1 execution)": 20, "active query": 50, "min-regret plan": 50}
     print(f"median of {args.repeats} runs:")
     for name, ms in results.items():
-        target = f"  (target < {targets[name]} ms: {'met' if ms < targets[name] else 'MISSED'})" if name in targets else ""
+        target = (f"  (target < {targets[name]} ms: {'met' if ms < targets[name] else 'MISSED'})"
+                  if name in targets else "")
         print(f"  {name:<55} {ms:9.2f} ms{target}")
     ratio = results["brute-force query (326 executions scored one by one)"] / results["active query"]
     print(f"  active query is {ratio:.0f}x faster than scoring executions one by one")

@@ -1,7 +1,7 @@
 """initial schema
 
 Revision ID: 0001
-Revises: 
+Revises:
 Create Date: 2026-11-22 03:27:04.306763
 """
 
@@ -63,7 +63,8 @@ def upgrade() -> None:
     sa.Column('finished_at', sa.DateTime(timezone=True), nullable=True),
     sa.Column('n_events', sa.Integer(), nullable=False),
     sa.Column('version', sa.Integer(), nullable=False),
-    sa.ForeignKeyConstraint(['study_id'], ['studies.id'], name=op.f('fk_participants_study_id_studies'), ondelete='CASCADE'),
+    sa.ForeignKeyConstraint(['study_id'], ['studies.id'], name=op.f('fk_participants_study_id_studies'),
+                            ondelete='CASCADE'),
     sa.PrimaryKeyConstraint('id', name=op.f('pk_participants')),
     sa.UniqueConstraint('study_id', 'prolific_pid', name='uq_participants_study_external')
     )
@@ -84,7 +85,8 @@ def upgrade() -> None:
     sa.Column('payload', sa.JSON(), nullable=False),
     sa.Column('created_at', sa.DateTime(timezone=True), nullable=False),
     sa.Column('app_version', sa.String(length=32), nullable=False),
-    sa.ForeignKeyConstraint(['participant_id'], ['participants.id'], name=op.f('fk_events_participant_id_participants'), ondelete='CASCADE'),
+    sa.ForeignKeyConstraint(['participant_id'], ['participants.id'], name=op.f('fk_events_participant_id_participants'),
+                            ondelete='CASCADE'),
     sa.PrimaryKeyConstraint('id', name=op.f('pk_events')),
     sa.UniqueConstraint('participant_id', 'client_event_id', name='uq_events_participant_client_id'),
     sa.UniqueConstraint('participant_id', 'seq', name='uq_events_participant_seq')
@@ -100,7 +102,8 @@ def upgrade() -> None:
     sa.Column('demo_placed', sa.JSON(), nullable=False),
     sa.Column('demo_trace', sa.JSON(), nullable=False),
     sa.Column('execution', sa.JSON(), nullable=True),
-    sa.ForeignKeyConstraint(['participant_id'], ['participants.id'], name=op.f('fk_task_sessions_participant_id_participants'), ondelete='CASCADE'),
+    sa.ForeignKeyConstraint(['participant_id'], ['participants.id'],
+                            name=op.f('fk_task_sessions_participant_id_participants'), ondelete='CASCADE'),
     sa.PrimaryKeyConstraint('id', name=op.f('pk_task_sessions')),
     sa.UniqueConstraint('participant_id', 'task_index', name='uq_task_sessions_participant_task')
     )

@@ -3,7 +3,8 @@
 A teacher knows a ground-truth formula (a clause-set mask). It demonstrates by following an
 optimal policy for that formula with random tie-breaking ("optimal"), by drawing uniformly from
 all satisfying executions ("uniform"), or by an optimal policy with fixed tie-breaking that
-repeats the same demonstration ("fixed": stop as soon as possible, lowest index first); it assesses an execution by checking the formula, flipping its
+repeats the same demonstration ("fixed": stop as soon as possible, lowest index first); it
+assesses an execution by checking the formula, flipping its
 verdict with probability ``noise`` (the paper assumed a perfect teacher; people are not).
 """
 

@@ -14,7 +14,8 @@ def participant_events(session: Session, *, participant_id: int) -> list[EventRo
     return list(session.scalars(stmt))
 
 
-def study_task_sessions_with_participants(session: Session, *, study_id: str) -> list[tuple[TaskSessionRow, ParticipantRow]]:
+def study_task_sessions_with_participants(session: Session, *,
+                                          study_id: str) -> list[tuple[TaskSessionRow, ParticipantRow]]:
     """Every teaching session of a study with its participant, by participant then task."""
     stmt = (
         select(TaskSessionRow, ParticipantRow)

@@ -127,7 +127,8 @@ def get_participant(session: Session, *, study_id: str, participant_id: int) -> 
 
 def find_participant_by_external_id(session: Session, *, study_id: str, prolific_pid: str) -> ParticipantRow | None:
     """The participant who joined a study with this external (e.g. Prolific) id."""
-    stmt = select(ParticipantRow).where(ParticipantRow.study_id == study_id, ParticipantRow.prolific_pid == prolific_pid)
+    stmt = select(ParticipantRow).where(ParticipantRow.study_id == study_id,
+                                        ParticipantRow.prolific_pid == prolific_pid)
     return session.scalars(stmt).one_or_none()
 
 
@@ -196,7 +197,8 @@ def add_task_session(session: Session, *, participant_id: int, task_index: int, 
 
 def task_sessions_of(session: Session, *, participant_id: int) -> list[TaskSessionRow]:
     """A participant's teaching sessions in task order."""
-    stmt = select(TaskSessionRow).where(TaskSessionRow.participant_id == participant_id).order_by(TaskSessionRow.task_index)
+    stmt = (select(TaskSessionRow).where(TaskSessionRow.participant_id == participant_id)
+            .order_by(TaskSessionRow.task_index))
     return list(session.scalars(stmt))
 
 

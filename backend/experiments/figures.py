@@ -41,7 +41,8 @@ def _title(settings: ExperimentSettings) -> str:
             + ("" if settings.demo_mode == "optimal" else f", {settings.demo_mode} demonstrations"))
 
 
-def plot_by_n_query(summary: Sequence[SummaryRow], settings: ExperimentSettings, statistic: str, stem: Path) -> list[Path]:
+def plot_by_n_query(summary: Sequence[SummaryRow], settings: ExperimentSettings, statistic: str,
+                    stem: Path) -> list[Path]:
     """Entropy (left) and similarity (right) against n_query, one line per protocol with CI bars."""
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True)
     offsets = dict(zip(PROTOCOLS, (-0.08, 0.0, 0.08), strict=True))  # dodge so the CI bars do not overlap

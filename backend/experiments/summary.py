@@ -66,7 +66,8 @@ def summary_columns() -> list[str]:
     return cols + ["map_exact", "confident_wrong"]
 
 
-def final_values(rows: Sequence[dict[str, str]], settings: ExperimentSettings) -> dict[tuple[str, int], dict[str, np.ndarray]]:
+def final_values(rows: Sequence[dict[str, str]],
+                 settings: ExperimentSettings) -> dict[tuple[str, int], dict[str, np.ndarray]]:
     """Per (protocol, n_query): each metric's values at the final learning step, ordered by run."""
     groups: dict[tuple[str, int], list[dict[str, str]]] = {}
     for row in rows:

@@ -63,7 +63,8 @@ def join_study(
         return state_view(s, participant, study), True
 
 
-def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str, key: str | None = None) -> dict[str, Any]:
+def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str,
+                 key: str | None = None) -> dict[str, Any]:
     """Record consent (or its refusal, which withdraws the participant)."""
     def run(a: Action) -> None:
         require_stage(a, "consent")
@@ -105,7 +106,8 @@ def _check_answer(item: dict[str, Any], value: Any) -> Any:
     return value
 
 
-def answer_questionnaire(ctx: Context, token: str, *, answers: dict[str, Any], key: str | None = None) -> dict[str, Any]:
+def answer_questionnaire(ctx: Context, token: str, *, answers: dict[str, Any],
+                         key: str | None = None) -> dict[str, Any]:
     """Store the questionnaire's answers; the participant is then done and gets a completion code."""
     def run(a: Action) -> None:
         require_stage(a, "questionnaire")

@@ -82,7 +82,8 @@ def _check_tasks(tasks: list[dict[str, Any]]) -> list[dict[str, Any]]:
             formula = TASK_FORMULAS[key]
         elif key == "custom":
             if not formula:
-                raise InvalidInput(f"tasks[{i}] is custom and needs a ground_truth formula over {', '.join(DINNER_OBJECTS)}")
+                raise InvalidInput(f"tasks[{i}] is custom and needs a ground_truth formula over "
+                                   f"{', '.join(DINNER_OBJECTS)}")
             try:
                 formula = space.text_of(space.mask_of_formula(formula))
             except ValueError as exc:
@@ -112,7 +113,8 @@ def _check_questionnaire(items: list[dict[str, Any]]) -> list[dict[str, Any]]:
         if kind not in ITEM_KINDS:
             raise InvalidInput(f"questionnaire[{i}].kind is {kind!r}; expected one of {', '.join(ITEM_KINDS)}")
         seen.add(item_id)
-        out.append({"id": item_id, "text": str(item.get("text", "")), "kind": kind, "required": bool(item.get("required", True))})
+        out.append({"id": item_id, "text": str(item.get("text", "")), "kind": kind,
+                    "required": bool(item.get("required", True))})
     return out
 
 
@@ -120,7 +122,8 @@ def _study_values(spec: dict[str, Any]) -> dict[str, Any]:
     """Validated column values of a new study."""
     conditions = list(spec.get("conditions") or [])
     if not conditions or len(set(conditions)) != len(conditions) or any(c not in core.PROTOCOLS for c in conditions):
-        raise InvalidInput(f"conditions must be distinct protocols from {', '.join(core.PROTOCOLS)}, got {conditions!r}")
+        raise InvalidInput(f"conditions must be distinct protocols from {', '.join(core.PROTOCOLS)}, "
+                           f"got {conditions!r}")
     assignment = spec.get("assignment", "balanced")
     if assignment not in ASSIGNMENTS:
         raise InvalidInput(f"assignment is {assignment!r}; expected one of {', '.join(ASSIGNMENTS)}")

@@ -48,7 +48,8 @@ def _teaching(a: Action, expect: Expect, kinds: tuple[str, ...]) -> tuple[TaskSe
     if (expect.step_kind is not None and expect.step_kind != step.kind) or (
         expect.step_index is not None and expect.step_index != step.index
     ):
-        want = f"{expect.step_kind or step.kind} {(expect.step_index if expect.step_index is not None else step.index) + 1}"
+        want = (f"{expect.step_kind or step.kind} "
+                f"{(expect.step_index if expect.step_index is not None else step.index) + 1}")
         raise Conflict(f"this request is for {want}, but the session is at {here}")
     if step.kind not in kinds:
         raise Conflict(f"the session is at {here}; this action needs a {' or '.join(kinds)} step")

@@ -14,7 +14,8 @@ from .view import SceneView
 
 def play(recording: Recording, view: SceneView, *, speed: float = 1.0, stop: threading.Event | None = None) -> int:
     """Push a recording's frames at their recorded times divided by `speed`; return frames shown."""
-    return play_frames(recording.bodies, zip(recording.times, recording.poses, strict=True), view, speed=speed, stop=stop)
+    return play_frames(recording.bodies, zip(recording.times, recording.poses, strict=True), view,
+                       speed=speed, stop=stop)
 
 
 def play_frames(

@@ -78,7 +78,8 @@ def save_recording(data_dir: Path | str, saved: SavedRecording) -> Path:
 def list_recordings(data_dir: Path | str, participant_id: int | None = None) -> list[RecordingId]:
     """Every saved step (of one participant if given), sorted by participant, task, kind and index."""
     root = Path(data_dir) / FOLDER
-    pattern = f"participant-{participant_id}/task-*/*.npz" if participant_id is not None else "participant-*/task-*/*.npz"
+    pattern = (f"participant-{participant_id}/task-*/*.npz" if participant_id is not None
+               else "participant-*/task-*/*.npz")
     out = []
     for path in root.glob(pattern):
         try:
@@ -92,7 +93,8 @@ def load_recording(data_dir: Path | str, rid: RecordingId) -> SavedRecording:
     """Read a saved step; FileNotFoundError naming the path if it was never saved."""
     npz, meta = _paths(data_dir, rid)
     if not npz.exists() or not meta.exists():
-        raise FileNotFoundError(f"no recording of {rid.name} under {Path(data_dir) / FOLDER}: expected {npz} and {meta}")
+        raise FileNotFoundError(f"no recording of {rid.name} under {Path(data_dir) / FOLDER}: "
+                                f"expected {npz} and {meta}")
     info = json.loads(meta.read_text())
     return SavedRecording(
         rid, Recording.load(npz), tuple(info["events"]), tuple(frozenset(x) for x in info["trace"]),

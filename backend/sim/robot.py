@@ -114,7 +114,8 @@ class MujocoRobot:
                 labels = table.world.place(obj)  # PlacementError (a ValueError) for an unknown or moved object
                 table.action_ends.append(float(table.world.data.time))
                 if table.watchers > 0:
-                    table.pending.append((f"The robot is placing the {_pretty(obj)}", table.world.recording.since(start)))
+                    table.pending.append((f"The robot is placing the {_pretty(obj)}",
+                                          table.world.recording.since(start)))
                 else:
                     self._show_still(table)
             self._start_player(table)

@@ -36,7 +36,8 @@ def cmd_serve(args: argparse.Namespace) -> None:
     app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
     upgrade_head(settings.database_url)
     base = settings.public_url or f"http://{settings.host}:{settings.port}"
-    lines = [f"TableTeach serving on http://{settings.host}:{settings.port} (database {_safe_url(settings.database_url)}, "
+    lines = [f"TableTeach serving on http://{settings.host}:{settings.port} "
+             f"(database {_safe_url(settings.database_url)}, "
              f"robot {settings.robot})",
              f"dashboard: {base}/dashboard   API docs: {base}/docs"]
     if args.demo:

@@ -1,4 +1,4 @@
-"""Render docs/participant.png: the participant page at 1280x800 while the robot carries out a query (run as a script)."""
+"""Render docs/participant.png: the participant page at 1280x800 while the robot executes a query (run as a script)."""
 
 from __future__ import annotations
 

@@ -122,8 +122,9 @@ def test_experimenter_follows_a_session_in_the_dashboard(server_factory: Any, br
     task.wait_for()
     kinds = task.locator("table.executions tbody tr").evaluate_all(
         "rows => rows.map(r => [r.dataset.kind, Number(r.dataset.index), r.querySelector('.pill').textContent])")
-    assert kinds == [["practice", 0, "practice"], ["demonstration", 0, "acceptable"], ["demonstration", 1, "acceptable"],
-                     ["query", 0, label[verdicts[0]]], ["query", 1, label[verdicts[1]]], ["test", 0, label[test_verdict]]]
+    assert kinds == [["practice", 0, "practice"], ["demonstration", 0, "acceptable"],
+                     ["demonstration", 1, "acceptable"], ["query", 0, label[verdicts[0]]],
+                     ["query", 1, label[verdicts[1]]], ["test", 0, label[test_verdict]]]
     assert task.locator("svg.chart").count() == 2  # entropy and similarity per learning step
     history = httpx.get(f"{server.url}/api/v1/studies/{study_id}/participants/{pid}/history",
                         headers={"Authorization": f"Bearer {EXPERIMENTER_TOKEN}"}).json()
@@ -158,7 +159,8 @@ def make_screenshot(out: Path = OUT) -> None:
             spec = study_spec(["active", "random"], name="Dinner table: Active vs Random queries")
             study_id = open_study(server.url, spec)
             for seed in range(6):
-                run_teacher(server.url, study_id, ["task1"], noise=0.1 * (seed % 2), seed=seed, prolific_pid=f"P{seed:03d}")
+                run_teacher(server.url, study_id, ["task1"], noise=0.1 * (seed % 2), seed=seed,
+                            prolific_pid=f"P{seed:03d}")
             run_teacher(server.url, study_id, ["task1"], seed=11, stop_after=5, prolific_pid="P011")
             # Show a participant in the active condition replaying a query in which the robot placed most objects.
             exp = ExperimenterClient(server.url, token=EXPERIMENTER_TOKEN)
@@ -219,9 +221,11 @@ def test_experimenter_creates_and_opens_a_study(server_factory: Any, browser_pag
                          headers={"Authorization": f"Bearer {EXPERIMENTER_TOKEN}"}).json()
 
     created = study()
-    assert (created["name"], created["status"], created["conditions"]) == ("Made in the browser", "draft", ["active", "random"])
+    assert (created["name"], created["status"], created["conditions"]) == (
+        "Made in the browser", "draft", ["active", "random"])
     assert created["tasks"][0]["key"] == "custom" and "(!bowl U dinner_plate)" in created["tasks"][0]["ground_truth"]
-    assert created["questionnaire"] == [{"id": "easy", "text": "Teaching was easy.", "kind": "likert5", "required": True}]
+    assert created["questionnaire"] == [
+        {"id": "easy", "text": "Teaching was easy.", "kind": "likert5", "required": True}]
     page.click("#open-study")
     page.wait_for_selector("#close-study")
     assert study()["status"] == "open"

@@ -193,7 +193,8 @@ def test_a_reload_in_the_middle_of_a_query_resumes_the_same_query(browser_page, 
     headers = {"Authorization": f"Bearer {token}"}
     for demo in (["dinner_plate", "small_plate", "bowl"], ["knife"]):  # through the API: the same service calls
         for obj in demo:
-            assert httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj}, headers=headers).status_code == 200
+            assert httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj},
+                              headers=headers).status_code == 200
         assert httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers).status_code == 200
 
     page.wait_for_selector("text=Question 1 of 1")

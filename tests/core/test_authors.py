@@ -84,7 +84,8 @@ def test_batch_2020_server_has_three_equal_modes():
     modes = [cs.text_of(m) for m, _ in top[:3]]
     expected = {
         cs.text_of(cs.mask_of_formula(
-            f"G(!small_plate) & F(dinner_plate) & F(bowl) & (!bowl U dinner_plate) & (!{x} U dinner_plate) & (!{x} U bowl)"))
+            f"G(!small_plate) & F(dinner_plate) & F(bowl) & (!bowl U dinner_plate) & (!{x} U dinner_plate) "
+            f"& (!{x} U bowl)"))
         for x in ("small_plate", "knife", "fork")
     }
     assert set(modes) == expected

@@ -166,7 +166,8 @@ def test_paired_differences_match_the_per_protocol_means(reference):
         (n, c) for n in ("0", "2") for c in ("active-batch", "active-random")]
     for r in paired:
         a, b = r["comparison"].split("-")
-        expected = float(summary[(a, r["n_query"])]["similarity_mean"]) - float(summary[(b, r["n_query"])]["similarity_mean"])
+        expected = (float(summary[(a, r["n_query"])]["similarity_mean"])
+                    - float(summary[(b, r["n_query"])]["similarity_mean"]))
         assert float(r["similarity_diff_mean"]) == pytest.approx(expected, abs=2e-3)
         assert sum(float(r[k]) for k in ("share_better", "share_equal", "share_worse")) == pytest.approx(1.0)
         if r["n_query"] == "0":  # no queries yet: every protocol has seen the same two demonstrations

@@ -27,7 +27,8 @@ def robot_turn(client: Any, token: str, acceptable: bool | None) -> dict[str, An
     assert response.status_code == 200, response.text
     execution = response.json()["execution"]
     assert execution["status"] == "finished"  # the trace robot without delay finishes at once
-    assert client.post("/api/v1/me/assessment", json={"acceptable": acceptable}, headers=bearer(token)).status_code == 200
+    assert client.post("/api/v1/me/assessment", json={"acceptable": acceptable},
+                       headers=bearer(token)).status_code == 200
     return execution
 
 
@@ -121,7 +122,8 @@ def test_history_of_an_unfinished_step_and_of_the_questionnaire(app_client: Any)
 
     demonstrate(app_client, token, ["dinner_plate"])
     answers = {"learned": 4, "overall": 7, "comments": "=fine"}
-    assert app_client.post("/api/v1/me/questionnaire", json={"answers": answers}, headers=bearer(token)).status_code == 200
+    assert app_client.post("/api/v1/me/questionnaire", json={"answers": answers},
+                           headers=bearer(token)).status_code == 200
     data = app_client.get(f"/api/v1/studies/{study_id}/participants/{pid}/history", headers=EXP).json()
     assert {a["item_id"]: a["answer"] for a in data["questionnaire"]} == answers
     assert data["participant"]["stage"] == "done" and data["participant"]["completion_code"]
@@ -132,7 +134,8 @@ def test_history_of_an_unfinished_step_and_of_the_questionnaire(app_client: Any)
 def test_curves_are_the_median_similarity_and_mean_entropy_per_step(app_client: Any) -> None:
     study_id = make_study(app_client, ["active", "random"], assignment="random")
     histories = []
-    for labels, tests in ([False, True, True], [True, True, True]), ([True, False, True], [True, None, True]), ([True], None):
+    for labels, tests in (([False, True, True], [True, True, True]), ([True, False, True], [True, None, True]),
+                          ([True], None)):
         token, _ = teach(app_client, study_id, labels, tests)
         pid = participant_id(app_client, token)
         histories.append(app_client.get(f"/api/v1/studies/{study_id}/participants/{pid}/history", headers=EXP).json())
@@ -209,7 +212,8 @@ def test_replay_without_a_recording_gives_the_trace_and_the_table_layout(app_cli
         assert abs(obj["slot"]["x"] - table_b["x"]) < table_b["half_x"]
         assert abs(obj["slot"]["y"] - table_b["y"]) < table_b["half_y"]
     assert layout["objects"]["dinner_plate"]["shape"] == "disc" and layout["objects"]["knife"]["shape"] == "bar"
-    demo = app_client.get(f"/api/v1/studies/{study_id}/participants/{pid}/replays/0/demonstration/1", headers=EXP).json()
+    demo = app_client.get(f"/api/v1/studies/{study_id}/participants/{pid}/replays/0/demonstration/1",
+                          headers=EXP).json()
     assert demo["objects"] == done[2]["objects"] and demo["source"] == "trace"
 
 

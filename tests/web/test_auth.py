@@ -40,7 +40,8 @@ def test_participants_and_strangers_cannot_use_experimenter_endpoints(app_client
     assert app_client.get(url, headers=EXP).status_code == 200
     for action in ("open", "close"):
         assert app_client.post(f"/api/v1/studies/{study}/{action}", headers=bearer(token)).status_code == 401
-    assert app_client.post("/api/v1/studies", json={"tasks": [{"key": "task1"}]}, headers=bearer(token)).status_code == 401
+    assert app_client.post("/api/v1/studies", json={"tasks": [{"key": "task1"}]},
+                           headers=bearer(token)).status_code == 401
 
 
 def test_participant_endpoints_need_a_known_token(app_client) -> None:

@@ -27,7 +27,8 @@ def _csv(text: str) -> list[dict[str, str]]:
 def _exports(url: str, study_id: str) -> dict[str, list[dict[str, str]]]:
     exp = ExperimenterClient(url, token=EXPERIMENTER_TOKEN)
     try:
-        return {name: _csv(exp.export(study_id, name)) for name in ("participants", "events", "beliefs", "questionnaire")}
+        return {name: _csv(exp.export(study_id, name))
+                for name in ("participants", "events", "beliefs", "questionnaire")}
     finally:
         exp.close()
 
@@ -45,7 +46,8 @@ def _check_exports_match(run: TeacherRun, exports: dict[str, list[dict[str, str]
     assert [e["object"] for e in placements] == [obj for a in taught for obj in a["events"]]
     assert [json.loads(e["trace"]) for e in demos] == [a["trace"] for a in taught]
     assert [e["step_kind"] for e in demos] == [a["kind"] for a in taught]
-    assert [(e["step_kind"], json.loads(e["robot_events"]), json.loads(e["trace"]), e["acceptable"]) for e in assessments] == [
+    assert [(e["step_kind"], json.loads(e["robot_events"]), json.loads(e["trace"]), e["acceptable"])
+            for e in assessments] == [
         (a["kind"], a["events"], a["trace"], str(a["acceptable"])) for a in robot
     ]
     # Robot traces are what the robot reported: for the trace robot, the labels of its placements.

@@ -46,7 +46,8 @@ def test_malformed_requests_are_422_naming_the_field(app_client) -> None:
     assert r.status_code == 422 and r.json()["detail"].startswith("object:")
     r = app_client.post("/api/v1/me/placements", json={"object": "bowl", "colour": "red"}, headers=h)
     assert r.status_code == 422 and "colour" in r.json()["detail"]
-    r = app_client.post("/api/v1/me/placements", content=b"{not json", headers={**h, "content-type": "application/json"})
+    r = app_client.post("/api/v1/me/placements", content=b"{not json",
+                        headers={**h, "content-type": "application/json"})
     assert r.status_code == 422
     r = app_client.post("/api/v1/studies", json={"tasks": [{"key": "custom", "ground_truth": "F(spoon)"}]}, headers=EXP)
     assert r.status_code == 422 and "spoon" in r.json()["detail"]
