@@ -21,11 +21,18 @@ ensure_venv test
 
 cd "$ROOT"
 set +e
+echo "==> ruff check (lint; settings in pyproject.toml)"
+"$VENV/bin/ruff" check .
+lint=$?
 "$VENV/bin/python" -m pytest "$@"
 status=$?
 set -e
 if [ "$status" = 5 ]; then
   echo "error: pytest collected no tests; that is a failure here, not a pass" >&2
+  exit 1
+fi
+if [ "$lint" != 0 ] && [ "$status" = 0 ]; then
+  echo "error: the tests passed but ruff found problems (above)" >&2
   exit 1
 fi
 exit "$status"

@@ -39,7 +39,7 @@ def revolve(profile: list[tuple[float, float]], segments: int) -> tuple[np.ndarr
             vertices.append((r * np.cos(a), r * np.sin(a), z))
         rings.append(ring)
     faces = []
-    for lower, upper in zip(rings[:-1], rings[1:]):
+    for lower, upper in zip(rings[:-1], rings[1:], strict=True):
         for k in range(segments):
             a, b = lower[k], lower[(k + 1) % segments]
             c, d = upper[(k + 1) % segments], upper[k]

@@ -15,7 +15,7 @@ def wait_for_camera(server: Any, timeout: float = 60.0) -> Any:
     while time.monotonic() < deadline:
         for client in server.get_clients().values():
             try:
-                client.camera.fov  # raises until the browser has reported its camera
+                client.camera.fov  # noqa: B018 - raises until the browser has reported its camera
                 return client.camera
             except AssertionError:
                 pass
