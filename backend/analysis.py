@@ -1,7 +1,7 @@
 """The experimenter's analysis views: live participant table, one participant's history, learning curves, replays.
 
 Read-only: every function opens a read transaction, rebuilds beliefs with the learning core
-(core.session.beliefs_by_step) and never writes. The learning curves follow the paper's user-study
+(core.session.belief_after) and never writes. The learning curves follow the paper's user-study
 figure: the median expected similarity to the ground truth E_P[L(phi, phi*)] and the mean entropy of
 the belief after each learning step (step 0 is the prior, step k the belief after the k-th
 demonstration or assessed query).
@@ -28,6 +28,7 @@ from .services.monitoring import (
     participant_row,
     study_participant,
 )
+from .services.planning import session_of
 from .services.state import current_task
 from .services.studies import study_row
 
@@ -65,28 +66,53 @@ def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | N
 # ====================================================================== beliefs per step
 
 
-@lru_cache(maxsize=4096)  # finished sessions never change, so their per-step summaries are computed once
-def _step_summaries(state_json: str, truth_formula: str | None, top: int) -> tuple[dict[str, Any], ...]:
-    """The belief after each learning step of a stored session: entropy, similarity, MAP and top formulas."""
+@lru_cache(maxsize=64)
+def _truth_mask(truth_formula: str) -> int:
+    return get_domain("dinner").clause_space.mask_of_formula(truth_formula)
+
+
+@lru_cache(maxsize=65536)  # the same few formulas head most participants' beliefs
+def _formula_view(mask: int) -> tuple[str, str]:
+    """A clause set's formula text and plain-English description."""
     space = get_domain("dinner").clause_space
-    state = core.SessionState.from_json(state_json)
-    truth = None if truth_formula is None else space.mask_of_formula(truth_formula)
+    return space.text_of(mask), space.describe(mask)
+
+
+# Keyed by the data so far, not by the whole session: when a participant adds a step, the dashboard's
+# next poll computes that one step, not all of them again.
+@lru_cache(maxsize=16384)
+def _belief_summary(task: str, prior: str, data: tuple[tuple[core.Trace, bool], ...], truth_formula: str | None,
+                    top: int) -> dict[str, Any]:
+    """Entropy, similarity to the truth, MAP and top formulas of the belief after these labelled executions."""
+    belief = core.belief_after(task, prior, data)
+    truth = None if truth_formula is None else _truth_mask(truth_formula)
+    map_formula, map_description = _formula_view(belief.map_mask)
+    top_formulas = []
+    for mask, p in belief.top(top):
+        formula, description = _formula_view(mask)
+        top_formulas.append({"formula": formula, "description": description, "p": p})
+    return {
+        "entropy": belief.entropy,
+        "similarity": None if truth is None else belief.similarity(truth),
+        "map_similarity": None if truth is None else belief.map_similarity(truth),
+        "map_formula": map_formula,
+        "map_description": map_description,
+        "top": top_formulas,
+    }
+
+
+def _step_summaries(state_json: str, truth_formula: str | None, top: int) -> list[dict[str, Any]]:
+    """The belief after each learning step of a stored session: entropy, similarity, MAP and top formulas."""
+    state = session_of(state_json)
+    task, prior = state.config.task, state.config.prior
+    data = tuple((r.trace, bool(r.acceptable)) for r in state.learning_records)
     records: list[core.Record | None] = [None, *state.learning_records]
-    out = []
-    for step, (record, belief) in enumerate(zip(records, core.beliefs_by_step(state), strict=True)):
-        out.append({
-            "step": step,
-            "record": None if record is None else {
-                "kind": record.kind, "acceptable": record.acceptable, "trace": [sorted(x) for x in record.trace]},
-            "entropy": belief.entropy,
-            "similarity": None if truth is None else belief.similarity(truth),
-            "map_similarity": None if truth is None else belief.map_similarity(truth),
-            "map_formula": space.text_of(belief.map_mask),
-            "map_description": space.describe(belief.map_mask),
-            "top": [{"formula": space.text_of(m), "description": space.describe(m), "p": p}
-                    for m, p in belief.top(top)],
-        })
-    return tuple(out)
+    return [
+        {"step": step, "record": None if record is None else {
+            "kind": record.kind, "acceptable": record.acceptable, "trace": [sorted(x) for x in record.trace]},
+         **_belief_summary(task, prior, data[:step], truth_formula, top)}
+        for step, record in enumerate(records)
+    ]
 
 
 def _task_steps(ts: TaskSessionRow, study: StudyRow) -> list[dict[str, Any]]:

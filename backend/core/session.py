@@ -195,6 +195,11 @@ def _belief_of(task: str, prior: str, data: tuple[tuple[Trace, bool], ...]) -> B
     return _belief_of(task, prior, data[:-1]).observe(trace, acceptable)
 
 
+def belief_after(task: str, prior: str, data: tuple[tuple[Trace, bool], ...]) -> Belief:
+    """The belief after these labelled executions, in order (cached prefix by prefix)."""
+    return _belief_of(task, prior, data)
+
+
 def belief(state: SessionState) -> Belief:
     """The learner's belief after the session's demonstrations and assessed queries."""
     data = tuple((r.trace, bool(r.acceptable)) for r in state.learning_records)

@@ -291,3 +291,27 @@ def test_the_dashboard_page_and_only_its_own_assets_are_served(app_client: Any) 
         assert response.status_code == 200 and response.headers["content-type"].startswith(kind), name
     for name in ("dashboard.html", "api.js", "..%2Fpyproject.toml", "nope.js"):
         assert app_client.get(f"/dashboard/assets/{name}").status_code == 404, name
+
+
+def test_a_new_learning_step_costs_the_dashboard_one_belief_summary_not_all_of_them() -> None:
+    from tableteach import analysis
+    from tableteach.core import session as core
+
+    config = core.SessionConfig(task="dinner", prior="chains-2020-sat", protocol="active", n_practice=0,
+                                n_demonstrations=3, n_queries=1, n_tests=0, seed=5)
+    state = core.start(config)
+    truth = TASK_FORMULAS["task1"]
+    # Orders no other test demonstrates, so that each new step is new to the cache.
+    demos = [["fork", "knife", "bowl"], ["knife", "fork", "small_plate", "bowl"], ["fork", "bowl", "knife"]]
+    analysis._step_summaries(state.to_json(), truth, 5)  # the prior's step
+    for i, objects in enumerate(demos):
+        state = core.observe(state, "demonstration", [sorted(objects[:k]) for k in range(len(objects) + 1)])
+        before = analysis._belief_summary.cache_info()
+        steps = analysis._step_summaries(state.to_json(), truth, 5)
+        after = analysis._belief_summary.cache_info()
+        assert len(steps) == i + 2
+        assert after.misses - before.misses == 1  # only the newest step is computed
+        # and what it shows is the belief after exactly those demonstrations
+        expected = core.beliefs_by_step(state)[-1]
+        assert steps[-1]["entropy"] == pytest.approx(expected.entropy)
+        assert steps[-1]["similarity"] == pytest.approx(expected.similarity(SPACE.mask_of_formula(truth)))
