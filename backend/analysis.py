@@ -29,7 +29,6 @@ from .services.monitoring import (
     study_participant,
 )
 from .services.planning import session_of
-from .services.state import current_task
 from .services.studies import study_row
 
 TOP_K = 5
@@ -50,12 +49,12 @@ def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | N
     now = utcnow()
     with ctx.db.read() as s:
         study = study_row(s, study_id)
+        current = repo.current_task_sessions(s, study_id=study_id)
         rows = []
         for p in repo.list_participants(s, study_id=study_id):
             inactive = inactive_minutes(p, now)
-            ts = current_task(s, p)
-            step = None if ts is None else {"task_index": p.task_index,
-                                            **_step_of(core.SessionState.from_json(ts.state_json))}
+            ts = current.get(p.id)
+            step = None if ts is None else {"task_index": p.task_index, **_step_of(session_of(ts.state_json))}
             rows.append({
                 **participant_row(p, ctx.settings, now), "n_tasks": len(study.tasks), "step": step,
                 "dropout": p.stage not in FINISHED and inactive > threshold, "inactive_minutes": inactive,

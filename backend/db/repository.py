@@ -195,6 +195,17 @@ def add_task_session(session: Session, *, participant_id: int, task_index: int, 
     return row
 
 
+def current_task_sessions(session: Session, *, study_id: str) -> dict[int, TaskSessionRow]:
+    """The teaching session each participant of a study is in now (those at the task stage), by participant id."""
+    stmt = (
+        select(TaskSessionRow)
+        .join(ParticipantRow, and_(TaskSessionRow.participant_id == ParticipantRow.id,
+                                   TaskSessionRow.task_index == ParticipantRow.task_index))
+        .where(ParticipantRow.study_id == study_id, ParticipantRow.stage == "task")
+    )
+    return {ts.participant_id: ts for ts in session.scalars(stmt)}
+
+
 def task_sessions_of(session: Session, *, participant_id: int) -> list[TaskSessionRow]:
     """A participant's teaching sessions in task order."""
     stmt = (select(TaskSessionRow).where(TaskSessionRow.participant_id == participant_id)

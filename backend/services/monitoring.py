@@ -12,7 +12,7 @@ from ..db import repository as repo
 from ..db.tables import ParticipantRow, utcnow
 from ..errors import NotFound
 from .context import Context, aware, iso
-from .state import current_task
+from .planning import session_of
 from .studies import study_row
 
 FINISHED = ("done", "withdrawn")
@@ -55,10 +55,11 @@ def list_participants(ctx: Context, study_id: str) -> list[dict[str, Any]]:
     now = utcnow()
     with ctx.db.read() as s:
         study_row(s, study_id)
+        current = repo.current_task_sessions(s, study_id=study_id)
         out = []
         for p in repo.list_participants(s, study_id=study_id):
-            ts = current_task(s, p)
-            phase = None if ts is None else core.SessionState.from_json(ts.state_json).phase
+            ts = current.get(p.id)
+            phase = None if ts is None else session_of(ts.state_json).phase
             out.append({**participant_row(p, ctx.settings, now), "phase": phase})
         return out
 
