@@ -9,6 +9,9 @@ Random and Batch conditions, and runs two scenarios, each with all teachers star
 - flat out: no pauses. The server is saturated, so latency is queueing (Little's law: mean latency =
   teachers / throughput); this reports the throughput and the latency at saturation.
 
+With --dashboard, an experimenter's dashboard is open during both: it polls the live table and the learning
+curves every 4 s, as the page does, and its latencies are reported apart from the teachers'.
+
 It prints sessions completed, request latency p50/p99 per action, errors, requests per second and the
 server's CPU time per request (when it started the server). Exit status 1 if the paced target is missed.
 
@@ -75,7 +78,25 @@ def _action(name: str) -> str:
     return name.rsplit("/", 1)[-1]
 
 
-def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pid: int | None) -> dict:
+DASHBOARD_POLL_S = 4.0  # frontend/dashboard.js POLL_MS
+
+
+def _watch_dashboard(url: str, study_id: str, token: str, stop: threading.Event, out: dict[str, list[float]],
+                     errors: list[str]) -> None:
+    """Poll /live then /curves every DASHBOARD_POLL_S until stop, recording latencies and failures."""
+    with httpx.Client(base_url=url, headers={"Authorization": f"Bearer {token}"}, timeout=60) as http:
+        while not stop.is_set():
+            for name in ("live", "curves"):
+                started = time.perf_counter()
+                response = http.get(f"/api/v1/studies/{study_id}/{name}")
+                out.setdefault(f"dashboard {name}", []).append(time.perf_counter() - started)
+                if response.status_code != 200:
+                    errors.append(f"dashboard {name}: HTTP {response.status_code}")
+            stop.wait(DASHBOARD_POLL_S)
+
+
+def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pid: int | None,
+                 dashboard_token: str | None = None) -> dict:
     """All teachers start at once (after their clients are built) and complete a session each."""
     latencies: list[float] = []
     by_action: dict[str, list[float]] = {}
@@ -114,12 +135,24 @@ def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pi
     threads = [threading.Thread(target=teacher, args=(i,)) for i in range(teachers)]
     for t in threads:
         t.start()
+    dashboard: dict[str, list[float]] = {}
+    dashboard_errors: list[str] = []
+    stop_dashboard = threading.Event()
+    watcher = None
+    if dashboard_token is not None:
+        watcher = threading.Thread(target=_watch_dashboard,
+                                   args=(url, study_id, dashboard_token, stop_dashboard, dashboard, dashboard_errors))
+        watcher.start()
     cpu_before = _cpu_seconds(server_pid) if server_pid else None
     started = time.perf_counter()
     start.wait()
     for t in threads:
         t.join()
     wall = time.perf_counter() - started
+    stop_dashboard.set()
+    if watcher is not None:
+        watcher.join()
+    errors += dashboard_errors
     cpu_after = _cpu_seconds(server_pid) if server_pid else None
     ms = np.array(latencies) * 1000
     result = {
@@ -132,6 +165,9 @@ def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pi
         "by_action": {name: {"n": len(v), "p50_ms": round(float(np.percentile(np.array(v) * 1000, 50)), 1),
                              "p99_ms": round(float(np.percentile(np.array(v) * 1000, 99)), 1)}
                       for name, v in sorted(by_action.items())},
+        "dashboard": {name: {"n": len(v), "p50_ms": round(float(np.percentile(np.array(v) * 1000, 50)), 1),
+                             "max_ms": round(float(np.max(v) * 1000), 1)}
+                      for name, v in sorted(dashboard.items())},
         "error_samples": errors[:10],
     }
     return result
@@ -139,9 +175,11 @@ def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pi
 
 def _print(title: str, result: dict) -> None:
     print(f"== {title}")
-    print(json.dumps({k: v for k, v in result.items() if k not in ("by_action", "error_samples")}))
+    print(json.dumps({k: v for k, v in result.items() if k not in ("by_action", "dashboard", "error_samples")}))
     for name, row in result["by_action"].items():
-        print(f"  {name:<14} n={row['n']:<5} p50={row['p50_ms']:7.1f} ms  p99={row['p99_ms']:7.1f} ms")
+        print(f"  {name:<17} n={row['n']:<5} p50={row['p50_ms']:7.1f} ms  p99={row['p99_ms']:7.1f} ms")
+    for name, row in result["dashboard"].items():
+        print(f"  {name:<17} n={row['n']:<5} p50={row['p50_ms']:7.1f} ms  max={row['max_ms']:7.1f} ms")
     for line in result["error_samples"]:
         print("error:", line, file=sys.stderr)
 
@@ -153,6 +191,8 @@ def main() -> int:
     parser.add_argument("--think", type=float, default=1.0,
                         help="paced scenario: pause between a teacher's requests, seconds (default 1)")
     parser.add_argument("--no-flat-out", action="store_true", help="skip the scenario without pauses")
+    parser.add_argument("--dashboard", action="store_true",
+                        help="keep an experimenter's dashboard polling the live table and curves meanwhile")
     parser.add_argument("--server", help="an existing server (default: start one on a temp SQLite file)")
     parser.add_argument("--token", help="experimenter token of --server")
     args = parser.parse_args()
@@ -171,14 +211,16 @@ def main() -> int:
                                   "questionnaire": [{"id": "overall", "text": "Overall", "kind": "rating10"}]})
         exp.open_study(study["id"])
         pid = proc.pid if proc is not None else None
-        paced = run_scenario(url, study["id"], args.teachers, args.think, pid)
-        _print(f"paced: {args.teachers} teachers, {args.think:g} s between a teacher's requests (target: all "
-               f"complete, p99 < {TARGET_P99_MS:g} ms, 0 errors)", paced)
+        watcher_token = token if args.dashboard else None
+        paced = run_scenario(url, study["id"], args.teachers, args.think, pid, watcher_token)
+        watching = ", dashboard open" if args.dashboard else ""
+        _print(f"paced: {args.teachers} teachers, {args.think:g} s between a teacher's requests{watching} (target: "
+               f"all complete, p99 < {TARGET_P99_MS:g} ms, 0 errors)", paced)
         ok = paced["completed"] == args.teachers and not paced["errors"] and paced["p99_ms"] < TARGET_P99_MS
         print(f"   target {'met' if ok else 'NOT met'}")
         if not args.no_flat_out:
-            flat = run_scenario(url, study["id"], args.teachers, 0.0, pid)
-            _print(f"flat out: {args.teachers} teachers, no pauses (saturation; latency is queueing)", flat)
+            flat = run_scenario(url, study["id"], args.teachers, 0.0, pid, watcher_token)
+            _print(f"flat out: {args.teachers} teachers, no pauses{watching} (saturation; latency is queueing)", flat)
         exp.close()
         return 0 if ok else 1
     finally:
