@@ -147,12 +147,16 @@ class ClauseSpace:
             mask |= self.bit(clause)
         return mask
 
+    @cached_property
+    def _clause_by_formula(self) -> dict[Formula, Clause]:
+        return {c.formula(): c for c in reversed(self.clauses)}  # reversed: the first clause wins, as before
+
     def _clause_from_formula(self, part: Formula) -> Clause:
         expected = "a clause G(!p), F(p) or (!b U a) over this task's propositions"
-        candidates = [c for c in self.clauses if c.formula() == part]
-        if not candidates:
+        clause = self._clause_by_formula.get(part)
+        if clause is None:
             raise ValueError(f"{to_text(part)!r} is not a template clause of this task; expected {expected}")
-        return candidates[0]
+        return clause
 
     # ------------------------------------------------------------ semantics
 
