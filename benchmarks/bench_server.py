@@ -81,18 +81,30 @@ def _action(name: str) -> str:
 DASHBOARD_POLL_S = 4.0  # frontend/dashboard.js POLL_MS
 
 
-def _watch_dashboard(url: str, study_id: str, token: str, stop: threading.Event, out: dict[str, list[float]],
-                     errors: list[str]) -> None:
-    """Poll /live then /curves every DASHBOARD_POLL_S until stop, recording latencies and failures."""
-    with httpx.Client(base_url=url, headers={"Authorization": f"Bearer {token}"}, timeout=60) as http:
-        while not stop.is_set():
-            for name in ("live", "curves"):
-                started = time.perf_counter()
-                response = http.get(f"/api/v1/studies/{study_id}/{name}")
-                out.setdefault(f"dashboard {name}", []).append(time.perf_counter() - started)
-                if response.status_code != 200:
-                    errors.append(f"dashboard {name}: HTTP {response.status_code}")
-            stop.wait(DASHBOARD_POLL_S)
+class _Dashboard:
+    """An experimenter's open dashboard: polls /live then /curves, recording latencies and failures."""
+
+    def __init__(self, url: str, study_id: str, token: str) -> None:
+        self.http = httpx.Client(base_url=url, headers={"Authorization": f"Bearer {token}"}, timeout=60)
+        self.study_id = study_id
+        self.latencies: dict[str, list[float]] = {}
+        self.errors: list[str] = []
+        self.stop = threading.Event()
+
+    def poll(self) -> None:
+        """One refresh of the page."""
+        for name in ("live", "curves"):
+            started = time.perf_counter()
+            response = self.http.get(f"/api/v1/studies/{self.study_id}/{name}")
+            self.latencies.setdefault(f"dashboard {name}", []).append(time.perf_counter() - started)
+            if response.status_code != 200:
+                self.errors.append(f"dashboard {name}: HTTP {response.status_code}")
+
+    def watch(self) -> None:
+        """Refresh every DASHBOARD_POLL_S until stopped."""
+        while not self.stop.wait(DASHBOARD_POLL_S):
+            self.poll()
+        self.http.close()
 
 
 def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pid: int | None,
@@ -135,13 +147,11 @@ def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pi
     threads = [threading.Thread(target=teacher, args=(i,)) for i in range(teachers)]
     for t in threads:
         t.start()
-    dashboard: dict[str, list[float]] = {}
-    dashboard_errors: list[str] = []
-    stop_dashboard = threading.Event()
+    dashboard = None if dashboard_token is None else _Dashboard(url, study_id, dashboard_token)
     watcher = None
-    if dashboard_token is not None:
-        watcher = threading.Thread(target=_watch_dashboard,
-                                   args=(url, study_id, dashboard_token, stop_dashboard, dashboard, dashboard_errors))
+    if dashboard is not None:
+        dashboard.poll()  # the experimenter has the page open before the participants arrive
+        watcher = threading.Thread(target=dashboard.watch)
         watcher.start()
     cpu_before = _cpu_seconds(server_pid) if server_pid else None
     started = time.perf_counter()
@@ -149,10 +159,10 @@ def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pi
     for t in threads:
         t.join()
     wall = time.perf_counter() - started
-    stop_dashboard.set()
-    if watcher is not None:
+    if dashboard is not None and watcher is not None:
+        dashboard.stop.set()
         watcher.join()
-    errors += dashboard_errors
+        errors += dashboard.errors
     cpu_after = _cpu_seconds(server_pid) if server_pid else None
     ms = np.array(latencies) * 1000
     result = {
@@ -167,7 +177,7 @@ def run_scenario(url: str, study_id: str, teachers: int, think: float, server_pi
                       for name, v in sorted(by_action.items())},
         "dashboard": {name: {"n": len(v), "p50_ms": round(float(np.percentile(np.array(v) * 1000, 50)), 1),
                              "max_ms": round(float(np.max(v) * 1000), 1)}
-                      for name, v in sorted(dashboard.items())},
+                      for name, v in sorted(dashboard.latencies.items() if dashboard else [])},
         "error_samples": errors[:10],
     }
     return result
