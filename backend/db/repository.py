@@ -132,21 +132,11 @@ def find_participant_by_external_id(session: Session, *, study_id: str, prolific
     return session.scalars(stmt).one_or_none()
 
 
-def add_participant(session: Session, *, values: dict[str, Any],
-                    first_event: dict[str, Any] | None = None) -> ParticipantRow:
-    """Insert a participant and, if given, the first event of its log (kind, payload, app_version).
-
-    The participant is inserted already counting that event, so joining costs two inserts and no update."""
-    if first_event is None:
-        row = ParticipantRow(**values)
-    else:
-        row = ParticipantRow(**{**values, "n_events": 1, "last_activity_at": utcnow()})
+def add_participant(session: Session, *, values: dict[str, Any]) -> ParticipantRow:
+    """Insert a participant."""
+    row = ParticipantRow(**values)
     session.add(row)
     flush(session)
-    if first_event is not None:
-        _insert_event(session, {"participant_id": row.id, "seq": 1, "created_at": row.last_activity_at,
-                                "client_event_id": None, "request_digest": None, "task_index": None,
-                                "step_kind": None, "step_index": None, **first_event})
     return row
 
 
@@ -251,15 +241,12 @@ def append_event(
     with a stored sequence number or idempotency key raises WriteConflict here rather than at commit."""
     participant.n_events = (participant.n_events or 0) + 1
     participant.last_activity_at = utcnow()
-    _insert_event(session, {
+    values = {
         "participant_id": participant.id, "seq": participant.n_events, "client_event_id": client_event_id,
         "request_digest": request_digest, "kind": kind, "task_index": task_index, "step_kind": step_kind,
         "step_index": step_index, "payload": payload, "app_version": app_version,
         "created_at": participant.last_activity_at,
-    })
-
-
-def _insert_event(session: Session, values: dict[str, Any]) -> None:
+    }
     try:
         with session.no_autoflush:  # the participant's row exists; its changes are flushed at commit
             session.execute(_INSERT_EVENT, values)

@@ -42,22 +42,23 @@ def join_study(
                 return state_view(s, existing, study), False
         if study.status != "open":
             raise Conflict(f"study {study_id!r} is {study.status}; participants can join only while it is open")
-        condition = _choose_condition(s, study, ctx.settings)
         participant = repo.add_participant(s, values={
             "token": secrets.token_urlsafe(24),
             "study_id": study.id,
             "prolific_pid": prolific_pid or None,
             "external_study_id": external_study_id or None,
             "external_session_id": external_session_id or None,
-            "condition": condition,
+            "condition": _choose_condition(s, study, ctx.settings),
             "seed": secrets.randbelow(2**31 - 1000),
             "pilot": study.pilot,
             "stage": "consent",
             "task_index": 0,
-        }, first_event={"kind": "joined", "app_version": app_version(), "payload": {
-            "condition": condition, "prolific_pid": prolific_pid, "external_study_id": external_study_id,
+            "n_events": 0,
+        })
+        repo.append_event(s, participant=participant, kind="joined", app_version=app_version(), payload={
+            "condition": participant.condition, "prolific_pid": prolific_pid, "external_study_id": external_study_id,
             "external_session_id": external_session_id,
-        }})
+        })
         commit(s)
         return state_view(s, participant, study), True
 
