@@ -19,23 +19,30 @@ class WriteConflict(Exception):
     """A concurrent writer changed the same rows first, or a unique value already exists."""
 
 
+_LOST_RACE = (IntegrityError, StaleDataError, OperationalError)
+
+
+def _lost_race(session: Session, exc: Exception) -> WriteConflict:
+    """Roll back (forgetting cached rows) and name the race that was lost."""
+    session.rollback()
+    session.info.pop("task_sessions", None)
+    return WriteConflict(str(exc).splitlines()[0])
+
+
 def commit(session: Session) -> None:
     """Commit; a lost race (stale version, unique clash, busy database) becomes WriteConflict."""
     try:
         session.commit()
-    except (IntegrityError, StaleDataError, OperationalError) as exc:
-        session.rollback()
-        session.info.pop("task_sessions", None)
-        raise WriteConflict(str(exc).splitlines()[0]) from exc
+    except _LOST_RACE as exc:
+        raise _lost_race(session, exc) from exc
 
 
 def flush(session: Session) -> None:
     """Flush pending changes, translating lost races like commit()."""
     try:
         session.flush()
-    except (IntegrityError, StaleDataError) as exc:
-        session.rollback()
-        raise WriteConflict(str(exc).splitlines()[0]) from exc
+    except _LOST_RACE as exc:
+        raise _lost_race(session, exc) from exc
 
 
 # ------------------------------------------------------------------ studies
@@ -67,11 +74,6 @@ def add_study(session: Session, *, values: dict[str, Any]) -> StudyRow:
 
 
 # The statements of every participant request are built once: building one costs more than running it.
-_PARTICIPANT_AND_STUDY_BY_TOKEN = (
-    select(ParticipantRow, StudyRow)
-    .join(StudyRow, StudyRow.id == ParticipantRow.study_id)
-    .where(ParticipantRow.token == bindparam("token"))
-)
 _REQUEST_BY_TOKEN = (
     select(ParticipantRow, StudyRow, EventRow.kind, EventRow.request_digest)
     .join(StudyRow, StudyRow.id == ParticipantRow.study_id)
@@ -81,9 +83,6 @@ _REQUEST_BY_TOKEN = (
 )
 _TASK_SESSION = select(TaskSessionRow).where(
     TaskSessionRow.participant_id == bindparam("participant_id"), TaskSessionRow.task_index == bindparam("task_index")
-)
-_EVENT_BY_CLIENT_ID = select(EventRow).where(
-    EventRow.participant_id == bindparam("participant_id"), EventRow.client_event_id == bindparam("client_event_id")
 )
 _INSERT_EVENT = insert(EventRow.__table__)
 
@@ -96,16 +95,10 @@ class EarlierRequest:
     request_digest: str | None
 
 
-def get_participant_by_token(session: Session, *, token: str) -> ParticipantRow | None:
-    """The participant whose secret token this is."""
-    found = get_participant_and_study(session, token=token)
-    return None if found is None else found[0]
-
-
 def get_participant_and_study(session: Session, *, token: str) -> tuple[ParticipantRow, StudyRow] | None:
     """The participant whose secret token this is, with their study (one query)."""
-    row = session.execute(_PARTICIPANT_AND_STUDY_BY_TOKEN, {"token": token}).one_or_none()
-    return None if row is None else (row[0], row[1])
+    found = get_participant_for_request(session, token=token, client_event_id=None)
+    return None if found is None else found[:2]
 
 
 def get_participant_for_request(
@@ -216,12 +209,6 @@ def task_sessions_of(session: Session, *, participant_id: int) -> list[TaskSessi
 # ------------------------------------------------------------------ events
 
 
-def find_event_by_client_id(session: Session, *, participant_id: int, client_event_id: str) -> EventRow | None:
-    """The event a client already submitted under this id, if any."""
-    params = {"participant_id": participant_id, "client_event_id": client_event_id}
-    return session.scalars(_EVENT_BY_CLIENT_ID, params).one_or_none()
-
-
 def append_event(
     session: Session,
     *,
@@ -250,10 +237,8 @@ def append_event(
     try:
         with session.no_autoflush:  # the participant's row exists; its changes are flushed at commit
             session.execute(_INSERT_EVENT, values)
-    except (IntegrityError, OperationalError) as exc:
-        session.rollback()
-        session.info.pop("task_sessions", None)
-        raise WriteConflict(str(exc).splitlines()[0]) from exc
+    except _LOST_RACE as exc:
+        raise _lost_race(session, exc) from exc
 
 
 # ------------------------------------------------------------------ exports

@@ -67,27 +67,27 @@ def test_two_writers_of_one_participant_cannot_both_win(db: Database) -> None:
     # Two sessions load version n; the first to commit wins, the second gets WriteConflict, not a lost update.
     a_ctx, b_ctx = db._read(), db._read()  # deferred transactions to set up the race without BEGIN IMMEDIATE
     with a_ctx as a, b_ctx as b:
-        pa = repo.get_participant_by_token(a, token="tok")
-        pb = repo.get_participant_by_token(b, token="tok")
+        pa = repo.get_participant_and_study(a, token="tok")[0]
+        pb = repo.get_participant_and_study(b, token="tok")[0]
         repo.append_event(a, participant=pa, kind="x", payload={}, app_version="t")
         repo.commit(a)
         with pytest.raises(repo.WriteConflict):  # when it writes its event (SQLite) or commits
             repo.append_event(b, participant=pb, kind="y", payload={}, app_version="t")
             repo.commit(b)
     with db.read() as s:
-        p = repo.get_participant_by_token(s, token="tok")
+        p = repo.get_participant_and_study(s, token="tok")[0]
         assert p.n_events == 1 and p.id == pid
 
 
 def test_a_client_event_id_is_unique_per_participant(db: Database) -> None:
     _participant(db)
     with db.write() as s:
-        p = repo.get_participant_by_token(s, token="tok")
+        p = repo.get_participant_and_study(s, token="tok")[0]
         repo.append_event(s, participant=p, kind="x", payload={}, app_version="t", client_event_id="k")
         repo.commit(s)
     with db.write() as s:
-        p = repo.get_participant_by_token(s, token="tok")
-        assert repo.find_event_by_client_id(s, participant_id=p.id, client_event_id="k").kind == "x"
+        p, _, earlier = repo.get_participant_for_request(s, token="tok", client_event_id="k")
+        assert earlier is not None and earlier.kind == "x"
         # Bypass the service's check: the database itself refuses a second event with the same key.
         p.n_events += 5
         with pytest.raises(repo.WriteConflict):
@@ -100,4 +100,4 @@ def test_deleting_a_study_cascades_to_its_participants(db: Database) -> None:
         s.execute(text("delete from studies where id = 's1'"))
         repo.commit(s)
     with db.read() as s:
-        assert repo.get_participant_by_token(s, token="tok") is None
+        assert repo.get_participant_and_study(s, token="tok") is None
