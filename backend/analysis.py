@@ -23,6 +23,7 @@ from .errors import NotFound
 from .services import Context
 from .services.context import iso
 from .services.monitoring import (
+    belief_view,
     FINISHED,
     inactive_minutes,
     participant_row,
@@ -65,51 +66,16 @@ def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | N
 # ====================================================================== beliefs per step
 
 
-@lru_cache(maxsize=64)
-def _truth_mask(truth_formula: str) -> int:
-    return get_domain("dinner").clause_space.mask_of_formula(truth_formula)
-
-
-@lru_cache(maxsize=65536)  # the same few formulas head most participants' beliefs
-def _formula_view(mask: int) -> tuple[str, str]:
-    """A clause set's formula text and plain-English description."""
-    space = get_domain("dinner").clause_space
-    return space.text_of(mask), space.describe(mask)
-
-
-# Keyed by the data so far, not by the whole session: when a participant adds a step, the dashboard's
-# next poll computes that one step, not all of them again.
-@lru_cache(maxsize=16384)
-def _belief_summary(task: str, prior: str, data: tuple[tuple[core.Trace, bool], ...], truth_formula: str | None,
-                    top: int) -> dict[str, Any]:
-    """Entropy, similarity to the truth, MAP and top formulas of the belief after these labelled executions."""
-    belief = core.belief_after(task, prior, data)
-    truth = None if truth_formula is None else _truth_mask(truth_formula)
-    map_formula, map_description = _formula_view(belief.map_mask)
-    top_formulas = []
-    for mask, p in belief.top(top):
-        formula, description = _formula_view(mask)
-        top_formulas.append({"formula": formula, "description": description, "p": p})
-    return {
-        "entropy": belief.entropy,
-        "similarity": None if truth is None else belief.similarity(truth),
-        "map_similarity": None if truth is None else belief.map_similarity(truth),
-        "map_formula": map_formula,
-        "map_description": map_description,
-        "top": top_formulas,
-    }
-
-
 def _step_summaries(state_json: str, truth_formula: str | None, top: int) -> list[dict[str, Any]]:
     """The belief after each learning step of a stored session: entropy, similarity, MAP and top formulas."""
     state = session_of(state_json)
     task, prior = state.config.task, state.config.prior
-    data = tuple((r.trace, bool(r.acceptable)) for r in state.learning_records)
+    data = core.learning_data(state)
     records: list[core.Record | None] = [None, *state.learning_records]
     return [
         {"step": step, "record": None if record is None else {
             "kind": record.kind, "acceptable": record.acceptable, "trace": [sorted(x) for x in record.trace]},
-         **_belief_summary(task, prior, data[:step], truth_formula, top)}
+         **belief_view(task, prior, data[:step], truth_formula, top)}
         for step, record in enumerate(records)
     ]
 

@@ -188,33 +188,28 @@ def _rng(config: SessionConfig, kind: str, index: int) -> np.random.Generator:
 
 
 @lru_cache(maxsize=32)  # a 513,024-hypothesis belief is about 8 MB; the default prior's is 0.6 MB
-def _belief_of(task: str, prior: str, data: tuple[tuple[Trace, bool], ...]) -> Belief:
+def belief_after(task: str, prior: str, data: tuple[tuple[Trace, bool], ...]) -> Belief:
+    """The belief after these labelled executions, in order (cached prefix by prefix)."""
     if not data:
         return Belief.prior(get_space(task, prior))
     trace, acceptable = data[-1]
-    return _belief_of(task, prior, data[:-1]).observe(trace, acceptable)
+    return belief_after(task, prior, data[:-1]).observe(trace, acceptable)
 
 
-def belief_after(task: str, prior: str, data: tuple[tuple[Trace, bool], ...]) -> Belief:
-    """The belief after these labelled executions, in order (cached prefix by prefix)."""
-    return _belief_of(task, prior, data)
+def learning_data(state: SessionState) -> tuple[tuple[Trace, bool], ...]:
+    """The session's demonstrations and assessed queries as (trace, acceptable), in order."""
+    return tuple((r.trace, bool(r.acceptable)) for r in state.learning_records)
 
 
 def belief(state: SessionState) -> Belief:
     """The learner's belief after the session's demonstrations and assessed queries."""
-    data = tuple((r.trace, bool(r.acceptable)) for r in state.learning_records)
-    return _belief_of(state.config.task, state.config.prior, data)
+    return belief_after(state.config.task, state.config.prior, learning_data(state))
 
 
 def beliefs_by_step(state: SessionState) -> list[Belief]:
     """The belief before any data and after each learning record, in order."""
-    out: list[Belief] = []
-    data: list[tuple[Trace, bool]] = []
-    out.append(_belief_of(state.config.task, state.config.prior, ()))
-    for r in state.learning_records:
-        data.append((r.trace, bool(r.acceptable)))
-        out.append(_belief_of(state.config.task, state.config.prior, tuple(data)))
-    return out
+    data = learning_data(state)
+    return [belief_after(state.config.task, state.config.prior, data[:k]) for k in range(len(data) + 1)]
 
 
 def position(state: SessionState) -> tuple[StepKind, int, int]:

@@ -7,12 +7,12 @@ from collections.abc import Iterator
 from typing import Any
 
 from ..core import session as core
-from ..core.domain import get_domain
 from ..db import repository as repo
 from ..db.tables import StudyRow
 from ..errors import NotFound
 from .context import Context, iso
-from .monitoring import truth_mask
+from .monitoring import belief_view
+from .planning import session_of
 from .studies import study_row
 
 EXPORTS = ("participants", "events", "beliefs", "questionnaire")
@@ -88,21 +88,20 @@ def _export_rows(ctx: Context, study_id: str, name: str) -> Iterator[list[Any]]:
 
 
 def _belief_rows(s: Any, study: StudyRow) -> Iterator[list[Any]]:
-    space = get_domain("dinner").clause_space
     conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study.id)}
     for ts in repo.iter_study_task_sessions(s, study_id=study.id):
-        state = core.SessionState.from_json(ts.state_json)
-        truth = truth_mask(study.tasks[ts.task_index])
+        state = session_of(ts.state_json)
+        task = study.tasks[ts.task_index]
+        data = core.learning_data(state)
         records: list[core.Record | None] = [None, *state.learning_records]
-        for step, (record, b) in enumerate(zip(records, core.beliefs_by_step(state), strict=True)):
-            top = b.top(5)
+        for step, record in enumerate(records):
+            view = belief_view(state.config.task, state.config.prior, data[:step], task.get("ground_truth"), 5)
             cells: list[Any] = []
             for i in range(5):
-                cells += [space.text_of(top[i][0]), top[i][1]] if i < len(top) else [None, None]
-            yield [ts.participant_id, conditions.get(ts.participant_id), ts.task_index,
-                   study.tasks[ts.task_index]["key"], step, None if record is None else record.kind,
-                   None if record is None else record.acceptable,
+                cells += ([view["top"][i]["formula"], view["top"][i]["p"]] if i < len(view["top"])
+                          else [None, None])
+            yield [ts.participant_id, conditions.get(ts.participant_id), ts.task_index, task["key"], step,
+                   None if record is None else record.kind, None if record is None else record.acceptable,
                    None if record is None else _json([sorted(x) for x in record.trace]),
-                   b.entropy, space.text_of(b.map_mask), space.describe(b.map_mask),
-                   None if truth is None else b.similarity(truth),
-                   None if truth is None else b.map_similarity(truth), *cells]
+                   view["entropy"], view["map_formula"], view["map_description"], view["similarity"],
+                   view["map_similarity"], *cells]

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from datetime import datetime
+from functools import lru_cache
 from typing import Any
 
 from ..config import Settings
@@ -64,29 +65,48 @@ def list_participants(ctx: Context, study_id: str) -> list[dict[str, Any]]:
         return out
 
 
-def truth_mask(task: dict[str, Any]) -> int | None:
-    formula = task.get("ground_truth")
-    return None if formula is None else get_domain("dinner").clause_space.mask_of_formula(formula)
+@lru_cache(maxsize=65536)  # the same few formulas head most participants' beliefs
+def _formula_view(mask: int) -> tuple[str, str]:
+    """A clause set's formula text and plain-English description."""
+    space = get_domain("dinner").clause_space
+    return space.text_of(mask), space.describe(mask)
+
+
+# Keyed by the data so far, not by the whole session: when a participant adds a step, the dashboard's
+# next poll computes that one step, not all of them again. Callers must not change what it returns.
+@lru_cache(maxsize=16384)
+def belief_view(task: str, prior: str, data: tuple[tuple[core.Trace, bool], ...], truth_formula: str | None,
+                top: int) -> dict[str, Any]:
+    """Entropy, similarity to the truth, MAP and top formulas of the belief after these labelled executions."""
+    belief = core.belief_after(task, prior, data)
+    truth = None if truth_formula is None else get_domain("dinner").clause_space.mask_of_formula(truth_formula)
+    map_formula, map_description = _formula_view(belief.map_mask)
+    top_formulas = []
+    for mask, p in belief.top(top):
+        formula, description = _formula_view(mask)
+        top_formulas.append({"formula": formula, "description": description, "p": p})
+    return {
+        "entropy": belief.entropy,
+        "similarity": None if truth is None else belief.similarity(truth),
+        "map_similarity": None if truth is None else belief.map_similarity(truth),
+        "map_formula": map_formula,
+        "map_description": map_description,
+        "top": top_formulas,
+    }
 
 
 def belief_summary(ctx: Context, study_id: str, participant_id: int, *, top: int = 5) -> dict[str, Any]:
     """Per task: the learner's top formulas in plain English, entropy and similarity to the ground truth."""
-    space = get_domain("dinner").clause_space
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         participant = study_participant(s, study_id, participant_id)
         tasks = []
         for ts in repo.task_sessions_of(s, participant_id=participant.id):
-            state = core.SessionState.from_json(ts.state_json)
-            b = core.belief(state)
-            truth = truth_mask(study.tasks[ts.task_index])
-            tasks.append({
-                "task_index": ts.task_index, "task": study.tasks[ts.task_index]["key"], "phase": state.phase,
-                "n_observations": len(state.learning_records), "entropy": b.entropy,
-                "map_formula": space.text_of(b.map_mask), "map_description": space.describe(b.map_mask),
-                "similarity": None if truth is None else b.similarity(truth),
-                "map_similarity": None if truth is None else b.map_similarity(truth),
-                "top": [{"formula": space.text_of(m), "description": space.describe(m), "p": p} for m, p in b.top(top)],
-            })
+            state = session_of(ts.state_json)
+            task = study.tasks[ts.task_index]
+            view = belief_view(state.config.task, state.config.prior, core.learning_data(state),
+                               task.get("ground_truth"), top)
+            tasks.append({"task_index": ts.task_index, "task": task["key"], "phase": state.phase,
+                          "n_observations": len(state.learning_records), **view})
         return {"participant_id": participant.id, "condition": participant.condition, "stage": participant.stage,
                 "tasks": tasks}

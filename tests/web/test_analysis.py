@@ -296,6 +296,7 @@ def test_the_dashboard_page_and_only_its_own_assets_are_served(app_client: Any) 
 def test_a_new_learning_step_costs_the_dashboard_one_belief_summary_not_all_of_them() -> None:
     from tableteach import analysis
     from tableteach.core import session as core
+    from tableteach.services.monitoring import belief_view
 
     config = core.SessionConfig(task="dinner", prior="chains-2020-sat", protocol="active", n_practice=0,
                                 n_demonstrations=3, n_queries=1, n_tests=0, seed=5)
@@ -306,9 +307,9 @@ def test_a_new_learning_step_costs_the_dashboard_one_belief_summary_not_all_of_t
     analysis._step_summaries(state.to_json(), truth, 5)  # the prior's step
     for i, objects in enumerate(demos):
         state = core.observe(state, "demonstration", [sorted(objects[:k]) for k in range(len(objects) + 1)])
-        before = analysis._belief_summary.cache_info()
+        before = belief_view.cache_info()
         steps = analysis._step_summaries(state.to_json(), truth, 5)
-        after = analysis._belief_summary.cache_info()
+        after = belief_view.cache_info()
         assert len(steps) == i + 2
         assert after.misses - before.misses == 1  # only the newest step is computed
         # and what it shows is the belief after exactly those demonstrations
