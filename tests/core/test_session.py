@@ -95,9 +95,11 @@ def test_teacher_demonstration_modes():
         assert teacher.assess(teacher.demonstrate(rng).trace, rng)
 
 
-def test_position_agrees_with_next_step_through_a_session():
-    state, _ = run(SessionConfig(seed=4))
-    for k in range(len(state.records) + 1):
-        partial = SessionState(state.config, state.records[:k])
-        step = next_step(partial)
-        assert position(partial) == (step.kind, step.index, step.total)
+@pytest.mark.parametrize("protocol, demos, queries", [("active", 2, 3), ("batch", 5, 0)])
+def test_position_counts_through_each_phase(protocol, demos, queries):
+    state, _ = run(SessionConfig(protocol=protocol, seed=4))  # 1 practice, 2 demonstrations, 3 queries, 3 tests
+    expected = ([("practice", 0, 1)] + [("demonstration", i, demos) for i in range(demos)]
+                + [("query", i, queries) for i in range(queries)] + [("test", i, 3) for i in range(3)]
+                + [("done", 0, 0)])
+    positions = [position(SessionState(state.config, state.records[:k])) for k in range(len(state.records) + 1)]
+    assert positions == expected

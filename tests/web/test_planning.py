@@ -55,9 +55,9 @@ def test_states_without_a_robot_turn_are_not_planned_ahead() -> None:
     plan = RecordingPlan()
     planner = Planner(plan)
     try:
-        planner.plan_ahead(core.start(config).to_json())  # a practice trial comes next
-        time.sleep(0.05)
-        assert plan.calls == []
+        state_json = core.start(config).to_json()  # a practice trial comes next
+        planner.plan_ahead(state_json)
+        assert plan.calls == [] and state_json not in planner._plans  # decided before anything is submitted
     finally:
         planner.shutdown()
 
