@@ -313,7 +313,7 @@ def to_text(formula: Formula) -> str:
     if isinstance(formula, Or):
         return " | ".join(_operand(arg, allow=(Not, Until, Release, And)) for arg in formula.args)
     if isinstance(formula, Implies):
-        right = to_text(formula.right) if not isinstance(formula.right, Implies) else to_text(formula.right)
+        right = to_text(formula.right)
         left = _operand(formula.left, allow=(Not, Until, Release, And, Or))
         return f"{left} -> {right}"
     raise TypeError(f"not a formula: {formula!r}")
