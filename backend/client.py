@@ -17,15 +17,10 @@ from typing import Any
 import httpx
 import numpy as np
 
-from .core.domain import get_domain
+from .core.domain import DINNER_TASK_FORMULAS, get_domain
 from .core.metrics import similarity
 from .core.teachers import SimulatedTeacher
 
-NAMED_TRUTHS = {
-    "task1": "F(dinner_plate) & F(small_plate) & F(bowl) & F(knife) & F(fork) & (!small_plate U dinner_plate)"
-    " & (!bowl U small_plate) & (!bowl U dinner_plate)",
-    "task2": "G(!small_plate) & F(dinner_plate) & F(bowl) & (!bowl U dinner_plate)",
-}
 RETRIES = 4
 
 
@@ -168,7 +163,7 @@ class ExperimenterClient(_Base):
 
 def truth_mask(formula: str) -> int:
     """The clause mask of a ground truth given as a formula or as task1 / task2."""
-    return get_domain("dinner").clause_space.mask_of_formula(NAMED_TRUTHS.get(formula, formula))
+    return get_domain("dinner").clause_space.mask_of_formula(DINNER_TASK_FORMULAS.get(formula, formula))
 
 
 @dataclass

@@ -17,6 +17,12 @@ from .clauses import ClauseSpace
 
 STOP = None
 DINNER_OBJECTS = ("dinner_plate", "small_plate", "bowl", "knife", "fork")
+# The paper's two user-study tasks as ground-truth formulas over the dinner objects.
+DINNER_TASK_FORMULAS = {
+    "task1": "F(dinner_plate) & F(small_plate) & F(bowl) & F(knife) & F(fork) & (!small_plate U dinner_plate)"
+    " & (!bowl U small_plate) & (!bowl U dinner_plate)",
+    "task2": "G(!small_plate) & F(dinner_plate) & F(bowl) & (!bowl U dinner_plate)",
+}
 
 History = tuple[str, ...]
 

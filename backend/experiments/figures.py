@@ -17,7 +17,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402  (the backend must be chosen first)
 import numpy as np  # noqa: E402
 
-from .settings import PROTOCOLS, ExperimentSettings  # noqa: E402
+from ..core.session import PROTOCOLS
+from .settings import ExperimentSettings  # noqa: E402
 from .summary import SummaryRow, bootstrap_ci, group_rng  # noqa: E402
 
 COLORS = {"active": "#1b6ca8", "random": "#e08a00", "batch": "#4a9a3d"}

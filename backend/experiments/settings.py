@@ -7,21 +7,17 @@ import re
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from ..core.domain import DINNER_TASK_FORMULAS
 from ..core.priors import DEFAULT_PRIOR, NAMED_PRIORS
 from ..core.teachers import DEMO_MODES
 
-PROTOCOLS = ("active", "random", "batch")
 N_DEMONSTRATIONS = 2  # the paper's protocols all start from two demonstrations
 
 # Experiment domain -> (core task, fixed ground truth or None for a random one per run).
 DOMAINS: dict[str, tuple[str, str | None]] = {
     "synthetic": ("synthetic", None),
-    "dinner-task1": (
-        "dinner",
-        "F(dinner_plate) & F(small_plate) & F(bowl) & F(knife) & F(fork) & (!small_plate U dinner_plate)"
-        " & (!bowl U small_plate) & (!bowl U dinner_plate)",
-    ),
-    "dinner-task2": ("dinner", "G(!small_plate) & F(dinner_plate) & F(bowl) & (!bowl U dinner_plate)"),
+    "dinner-task1": ("dinner", DINNER_TASK_FORMULAS["task1"]),
+    "dinner-task2": ("dinner", DINNER_TASK_FORMULAS["task2"]),
     "dinner-random": ("dinner", None),
 }
 TRUTH_SAMPLERS = ("prior", "authors")

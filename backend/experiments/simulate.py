@@ -25,7 +25,8 @@ from ..core.hypotheses import HypothesisSpace, get_space
 from ..core.metrics import similarities
 from ..core.queries import Execution, active_query, random_query
 from ..core.teachers import SimulatedTeacher, authors_ground_truth, sample_ground_truth
-from .settings import PROTOCOLS, ExperimentSettings
+from ..core.session import PROTOCOLS
+from .settings import ExperimentSettings
 
 COLUMNS = (
     "run", "seed", "domain", "prior", "protocol", "n_query", "step", "n_executions",

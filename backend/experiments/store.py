@@ -23,7 +23,8 @@ try:
 except ImportError:  # Windows
     fcntl = None  # type: ignore[assignment]
 
-from .settings import PROTOCOLS, ExperimentSettings
+from ..core.session import PROTOCOLS
+from .settings import ExperimentSettings
 from .simulate import COLUMNS
 
 CONFIG = "config.json"

@@ -13,7 +13,8 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from .settings import PROTOCOLS, ExperimentSettings
+from ..core.session import PROTOCOLS
+from .settings import ExperimentSettings
 
 METRICS = ("similarity", "entropy", "map_similarity")
 STATISTICS: dict[str, Callable[..., np.ndarray]] = {"median": np.median, "mean": np.mean}

@@ -6,7 +6,7 @@ import secrets
 from typing import Any
 
 from ..core import session as core
-from ..core.domain import DINNER_OBJECTS, get_domain
+from ..core.domain import DINNER_OBJECTS, DINNER_TASK_FORMULAS, get_domain
 from ..core.priors import NAMED_PRIORS
 from ..core.puns import CRITERIA
 from ..db import repository as repo
@@ -14,11 +14,7 @@ from ..db.tables import StudyRow
 from ..errors import Conflict, InvalidInput, NotFound
 from .context import Context, commit, iso
 
-TASK_FORMULAS = {
-    "task1": "F(dinner_plate) & F(small_plate) & F(bowl) & F(knife) & F(fork) & (!small_plate U dinner_plate)"
-    " & (!bowl U small_plate) & (!bowl U dinner_plate)",
-    "task2": "G(!small_plate) & F(dinner_plate) & F(bowl) & (!bowl U dinner_plate)",
-}
+TASK_FORMULAS = DINNER_TASK_FORMULAS
 
 
 TASK_NAMES = {"task1": "Task 1: set the table for dinner", "task2": "Task 2: a light meal"}

@@ -8,7 +8,7 @@ from dataclasses import replace
 import pytest
 
 from tableteach.experiments import executors, sweep
-from tableteach.experiments.settings import PROTOCOLS
+from tableteach.core.session import PROTOCOLS
 from tableteach.experiments.simulate import COLUMNS
 from tableteach.experiments.summary import summary_columns
 from tableteach.experiments.sweep import run_sweep
