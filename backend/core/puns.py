@@ -120,7 +120,6 @@ class Policy:
     graph: ExecutionGraph
     value: np.ndarray
     action: np.ndarray
-    stop_value: np.ndarray
 
     def events_from(self, node: int = 0) -> tuple[str, ...]:
         """The successful moves the policy makes from a node until it stops."""
@@ -193,4 +192,4 @@ def backward_induction(
         value[level] = best
         steps[level] = cand_steps[np.arange(level.size), choice]
         action[level] = choice - 1
-    return Policy(graph, value, action, stop_value)
+    return Policy(graph, value, action)

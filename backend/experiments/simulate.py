@@ -32,7 +32,6 @@ COLUMNS = (
     "run", "seed", "domain", "prior", "protocol", "n_query", "step", "n_executions",
     "entropy", "similarity", "map_similarity", "map_formula", "ground_truth", "seconds",
 )
-STEP_KINDS = ("prior", "demonstration", "query")
 
 
 @dataclass(frozen=True)

@@ -70,11 +70,6 @@ class MujocoWorld:
         """Objects moved off Table A (placed or dropped), in order."""
         return tuple(self._moved)
 
-    @property
-    def held(self) -> str | None:
-        """The object in the gripper, if any."""
-        return self._held
-
     def labels(self) -> frozenset[str]:
         """Objects resting upright in their slot on Table B, judged from the physical state."""
         return frozenset(o for o in self.layout.objects if self.in_slot(o))
@@ -218,8 +213,6 @@ class MujocoWorld:
         pick_roll, put_roll = q_above_pick[4], q_above_put[4]
         descend = line(above_pick, pick, pick_yaw, pick_roll, 0.6)
         lift = line(pick, above_pick, pick_yaw, pick_roll, 0.5)
-        transport = joint(q_above_pick, q_above_put, 1.2)
-        lower = line(above_put, put, put_yaw, put_roll, 0.6)
         segments: list[tuple[np.ndarray, np.ndarray, str | None]] = [
             (joint(q_now, q_above_pick, 1.0), np.full(steps(1.0), FINGER_OPEN), None),
             (descend, np.full(len(descend), FINGER_OPEN), None),
@@ -234,6 +227,8 @@ class MujocoWorld:
                 (joint(q_drop, arm.HOME, 0.8), np.full(steps(0.8), FINGER_OPEN), None),
             ]
             return segments
+        transport = joint(q_above_pick, q_above_put, 1.2)
+        lower = line(above_put, put, put_yaw, put_roll, 0.6)
         retreat = line(put, above_put, put_yaw, put_roll, 0.4)
         segments += [
             (transport, np.full(len(transport), closed), None),
