@@ -131,7 +131,12 @@ class TraceRobot:
             return None if table is None else tuple(table.placed)
 
     def execute(self, key: str, events: Sequence[str]) -> None:
-        """Start an execution; its trace is revealed one placement per seconds_per_object."""
+        """Start an execution; its trace is revealed one placement per seconds_per_object.
+
+        ValueError names the first object that cannot be placed (unknown, or placed twice)."""
+        history: tuple[str, ...] = ()
+        for obj in events:  # refuse the whole request before anything is recorded, as the MuJoCo robot does
+            history = self.domain.step(history, obj)
         trace = tuple(self.domain.trace_of(tuple(events)))
         with self._lock:
             self._tables[key] = _Table(placed=list(events), execution=tuple(events), trace=trace,

@@ -25,7 +25,7 @@ from .playback import play
 from .recording import Recording
 from .recordings import RecordingId, SavedRecording, save_recording
 from .view import SceneView
-from .world import check_placeable
+from .world import check_sequence
 
 log = logging.getLogger(__name__)
 
@@ -134,10 +134,7 @@ class MujocoRobot:
         """Start an execution from a cleared table; the player thread simulates and shows it action by action."""
         table = self._table(key)
         events = tuple(events)
-        moved: list[str] = []
-        for obj in events:  # refuse the whole request before anything moves
-            check_placeable(obj, table.world.objects, tuple(moved))
-            moved.append(obj)
+        check_sequence(events, table.world.objects)  # refuse the whole request before anything moves
         with table.ops:
             self._halt(table)
             with table.lock:

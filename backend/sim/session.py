@@ -17,7 +17,7 @@ from .physics import MujocoWorld
 from .playback import play_frames
 from .recording import Recording
 from .view import SceneView
-from .world import check_placeable
+from .world import check_sequence
 
 
 class SessionBusyError(RuntimeError):
@@ -82,10 +82,8 @@ class SceneSession:
             raise SessionBusyError("the robot is still executing: expected wait() before the next run()")
         objects, drop = list(objects), set(drop)
         with self._lock:
-            moved = list(self.world.placed)
-        for obj in objects:  # refuse the whole request before anything moves
-            check_placeable(obj, self.world.objects, tuple(moved))
-            moved.append(obj)
+            moved = tuple(self.world.placed)
+        check_sequence(objects, self.world.objects, moved)  # refuse the whole request before anything moves
         self._error = None
         self._stop.clear()
         self._worker = threading.Thread(target=self._execute, args=(objects, drop), name="scene-session", daemon=True)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Protocol, runtime_checkable
 
 #: Object names, which are also the proposition names ("<object> rests in its slot on Table B").
@@ -61,3 +62,11 @@ def check_placeable(obj: str, objects: tuple[str, ...], moved: tuple[str, ...]) 
             f"object {obj!r} was already moved off Table A and cannot be picked up again: "
             f"expected one of the objects still on Table A: {expected}"
         )
+
+
+def check_sequence(objs: Sequence[str], objects: tuple[str, ...], moved: Sequence[str] = ()) -> None:
+    """Raise PlacementError unless every object can be moved in this order after `moved` (checks all first)."""
+    so_far = list(moved)
+    for obj in objs:
+        check_placeable(obj, objects, tuple(so_far))
+        so_far.append(obj)

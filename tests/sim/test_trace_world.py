@@ -55,3 +55,16 @@ def test_reset_restarts_the_trace():
     assert world.labels() == frozenset(OBJECTS)
     world.reset(7)
     assert world.trace == [frozenset()] and world.placed == ()
+
+
+def test_the_trace_robot_refuses_an_execution_it_cannot_carry_out_as_the_mujoco_robot_does():
+    from tableteach.robot import TraceRobot
+
+    robot = TraceRobot()
+    with pytest.raises(ValueError, match="'fork' is already placed"):
+        robot.execute("t", ["fork", "bowl", "fork"])
+    with pytest.raises(ValueError, match="unknown action 'spoon'"):
+        robot.execute("t", ["spoon"])
+    assert robot.progress("t") is None  # nothing was started
+    robot.execute("t", ["fork", "bowl"])
+    assert robot.progress("t").finished and robot.progress("t").events == ("fork", "bowl")
