@@ -22,7 +22,6 @@ import numpy as np
 from ..core.belief import Belief
 from ..core.domain import get_domain
 from ..core.hypotheses import HypothesisSpace, get_space
-from ..core.metrics import similarities
 from ..core.queries import Execution, active_query, random_query
 from ..core.teachers import SimulatedTeacher, authors_ground_truth, sample_ground_truth
 from ..core.session import PROTOCOLS
@@ -55,24 +54,16 @@ def draw_truth(settings: ExperimentSettings, space: HypothesisSpace, rng: np.ran
     return sample_ground_truth(space, rng)
 
 
-class _Recorder:
-    """Computes a step's metrics against one ground truth (its similarity vector computed once per run)."""
-
-    def __init__(self, space: HypothesisSpace, truth_mask: int) -> None:
-        self.text_of = space.domain.clause_space.text_of
-        self.truth_mask = truth_mask
-        # Belief.similarity recomputes this vector on every call; a run needs it ~20 times.
-        self.sims = similarities(space, truth_mask)
-
-    def __call__(self, kind: str, belief: Belief, seconds: float) -> StepResult:
-        return StepResult(
-            kind=kind,
-            entropy=belief.entropy + 0.0,  # + 0.0 turns -0.0 into 0.0
-            similarity=float(belief.probs @ self.sims),
-            map_similarity=belief.map_similarity(self.truth_mask),
-            map_formula=self.text_of(belief.map_mask),
-            seconds=seconds,
-        )
+def _step_result(kind: str, belief: Belief, truth: int, seconds: float) -> StepResult:
+    """A step's metrics against the run's ground truth."""
+    return StepResult(
+        kind=kind,
+        entropy=belief.entropy + 0.0,  # + 0.0 turns -0.0 into 0.0
+        similarity=belief.similarity(truth),
+        map_similarity=belief.map_similarity(truth),
+        map_formula=belief.space.domain.clause_space.text_of(belief.map_mask),
+        seconds=seconds,
+    )
 
 
 def _protocol_steps(
@@ -82,7 +73,7 @@ def _protocol_steps(
     n_steps: int,
     learner_rng: np.random.Generator,
     teacher_rng: np.random.Generator,
-    record: _Recorder,
+    truth: int,
 ) -> list[StepResult]:
     """The steps a protocol takes after the shared demonstrations."""
     out: list[StepResult] = []
@@ -92,7 +83,7 @@ def _protocol_steps(
             demo: Execution = teacher.demonstrate(teacher_rng)
             learner_started = time.perf_counter()
             belief = belief.observe(demo.trace, True)
-            out.append(record("demonstration", belief, time.perf_counter() - learner_started))
+            out.append(_step_result("demonstration", belief, truth, time.perf_counter() - learner_started))
             continue
         if protocol == "active":
             execution, _ = active_query(belief, learner_rng)
@@ -103,7 +94,7 @@ def _protocol_steps(
         updating = time.perf_counter()
         belief = belief.observe(execution.trace, verdict)
         seconds = (chosen - started) + (time.perf_counter() - updating)
-        out.append(record("query", belief, seconds))
+        out.append(_step_result("query", belief, truth, seconds))
     return out
 
 
@@ -115,16 +106,15 @@ def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
     domain = get_domain(settings.task)
     truth = draw_truth(settings, space, truth_rng)
     teacher = SimulatedTeacher(domain, truth, noise=settings.noise, demo_mode=settings.demo_mode)
-    record = _Recorder(space, truth)
 
     started = time.perf_counter()
     belief = Belief.prior(space)
-    shared = [record("prior", belief, time.perf_counter() - started)]
+    shared = [_step_result("prior", belief, truth, time.perf_counter() - started)]
     for _ in range(settings.n_demonstrations):
         demo = teacher.demonstrate(demo_rng)
         started = time.perf_counter()
         belief = belief.observe(demo.trace, True)
-        shared.append(record("demonstration", belief, time.perf_counter() - started))
+        shared.append(_step_result("demonstration", belief, truth, time.perf_counter() - started))
 
     truth_text = domain.clause_space.text_of(truth)
     rows: list[list[Any]] = []
@@ -134,7 +124,7 @@ def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
         # query positions in both; Batch's teacher uses the stream for its extra demonstrations.
         teacher_rng = np.random.default_rng(streams[3 + k] if protocol == "batch" else streams[2])
         steps = shared + _protocol_steps(
-            protocol, belief, teacher, settings.max_n_query, learner_rng, teacher_rng, record
+            protocol, belief, teacher, settings.max_n_query, learner_rng, teacher_rng, truth
         )
         for n_query in settings.n_query:
             for n_executions, step in enumerate(steps[: settings.n_demonstrations + n_query + 1]):
