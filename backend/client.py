@@ -211,7 +211,7 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
 
     stop_after: leave after that many actions (to test resuming); the run is then unfinished."""
     domain = get_domain("dinner")
-    masks = [truth_mask(g) for g in ground_truths]
+    teachers = [SimulatedTeacher(domain, truth_mask(g), noise) for g in ground_truths]
     rng = np.random.default_rng(seed)
     run = TeacherRun()
     counted = on_request
@@ -243,23 +243,23 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
             state = api.questionnaire(answers)
             run.actions.append({"kind": "questionnaire", "answers": answers})
         else:
-            state = _teach_step(api, state, domain, masks, noise, rng, run, poll_seconds)
+            state = _teach_step(api, state, teachers, rng, run, poll_seconds)
     if state["stage"] == "done":
         run.completion_code = state["completion"]["code"]
         for item in state["completion"]["learned"]:
-            mask = masks[min(item["task_index"], len(masks) - 1)]
+            mask = teachers[min(item["task_index"], len(teachers) - 1)].truth_mask
             learned = domain.clause_space.mask_of_formula(item["map_formula"])
             run.final.append({**item, "similarity": similarity(domain.clause_space, learned, mask)})
     return run
 
 
-def _teach_step(api: ParticipantClient, state: dict[str, Any], domain: Any, masks: list[int], noise: float,
+def _teach_step(api: ParticipantClient, state: dict[str, Any], teachers: list[SimulatedTeacher],
                 rng: np.random.Generator, run: TeacherRun, poll_seconds: float) -> dict[str, Any]:
     """One practice trial, demonstration, query or test."""
     task_index, step = state["task"]["index"], state["step"]
-    if task_index >= len(masks) and len(masks) > 1:
-        raise ValueError(f"the study has more than {len(masks)} tasks; give one --ground-truth per task")
-    teacher = SimulatedTeacher(domain, masks[min(task_index, len(masks) - 1)], noise)
+    if task_index >= len(teachers) and len(teachers) > 1:
+        raise ValueError(f"the study has more than {len(teachers)} tasks; give one --ground-truth per task")
+    teacher = teachers[min(task_index, len(teachers) - 1)]
     guard = _guard(state)
     if step["kind"] in ("practice", "demonstration"):
         events = [e for e in teacher.demonstrate(rng).events if e not in state["demonstration"]["placed"]]
