@@ -140,7 +140,8 @@ def app_client(tmp_path: Path) -> Iterator[Any]:
     from tableteach.db.migrate import upgrade_head
     from tableteach.web.app import create_app
 
-    settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN)
+    settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN,
+                        data_dir=tmp_path / "data")
     upgrade_head(settings.database_url)
     app = create_app(settings)
     with TestClient(app) as client:

@@ -194,9 +194,7 @@ def test_live_table_shows_the_step_and_flags_inactive_unfinished_participants(ap
     assert app_client.get(f"/api/v1/studies/{study_id}/live?dropout_minutes=0", headers=EXP).status_code == 422
 
 
-def test_replay_without_a_recording_gives_the_trace_and_the_table_layout(app_client: Any, tmp_path: Any,
-                                                                       monkeypatch: pytest.MonkeyPatch) -> None:
-    monkeypatch.setattr(app_client.ctx.settings, "data_dir", tmp_path)
+def test_replay_without_a_recording_gives_the_trace_and_the_table_layout(app_client: Any) -> None:
     study_id = make_study(app_client)
     token, done = teach(app_client, study_id, [False])
     pid = participant_id(app_client, token)
@@ -217,12 +215,10 @@ def test_replay_without_a_recording_gives_the_trace_and_the_table_layout(app_cli
     assert demo["objects"] == done[2]["objects"] and demo["source"] == "trace"
 
 
-def test_replay_of_a_saved_recording_sends_the_objects_and_the_hand_at_15_fps(app_client: Any, tmp_path: Any,
-                                                                              monkeypatch: pytest.MonkeyPatch) -> None:
+def test_replay_of_a_saved_recording_sends_the_objects_and_the_hand_at_15_fps(app_client: Any) -> None:
     from tableteach.sim.recording import Recording
     from tableteach.sim.recordings import RecordingId, SavedRecording, save_recording
 
-    monkeypatch.setattr(app_client.ctx.settings, "data_dir", tmp_path)
     study_id = make_study(app_client)
     token, done = teach(app_client, study_id, [True])
     pid = participant_id(app_client, token)
@@ -232,8 +228,9 @@ def test_replay_of_a_saved_recording_sends_the_objects_and_the_hand_at_15_fps(ap
     poses[:, 0, 0] = np.linspace(0.43, 0.45, 61)  # the dinner plate travels
     poses[:, 1, 1] = np.linspace(0.3, -0.3, 61)  # the hand
     recording = Recording(("dinner_plate", "hand", "upper_arm"), times, poses)
-    save_recording(tmp_path, SavedRecording(RecordingId(pid, 0, "query", 0), recording, tuple(done[3]["objects"]),
-                                            tuple(frozenset(s) for s in done[3]["trace"]), (1.0, 2.0)))
+    saved = SavedRecording(RecordingId(pid, 0, "query", 0), recording, tuple(done[3]["objects"]),
+                           tuple(frozenset(s) for s in done[3]["trace"]), (1.0, 2.0))
+    save_recording(app_client.ctx.settings.data_dir, saved)
     data = app_client.get(f"/api/v1/studies/{study_id}/participants/{pid}/replays/0/query/0", headers=EXP).json()
     assert data["source"] == "recording" and data["trace"] == done[3]["trace"]
     rec = data["recording"]
