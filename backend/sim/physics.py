@@ -16,7 +16,7 @@ import numpy as np
 from . import arm
 from .recording import Recording
 from .scene import SCENE_XML, load_scene
-from .world import check_placeable
+from .world import MoveLog
 
 CONTROL_DT = 1 / 30  # seconds per servo set-point: one mj_step call (GIL released) per frame
 FRAME_DT = 1 / 30  # seconds between recorded frames
@@ -44,7 +44,7 @@ def _rot_z(yaw: float, v: np.ndarray) -> np.ndarray:
     return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1], v[2]])
 
 
-class MujocoWorld:
+class MujocoWorld(MoveLog):
     """TableWorld backed by MuJoCo physics; not thread-safe (one caller at a time)."""
 
     def __init__(self, seed: int = 0, scene: Path = SCENE_XML) -> None:
@@ -59,16 +59,6 @@ class MujocoWorld:
     def objects(self) -> tuple[str, ...]:
         """All object names."""
         return self.layout.objects
-
-    @property
-    def trace(self) -> list[frozenset[str]]:
-        """Labels of the initial state and after every action since the last reset."""
-        return list(self._trace)
-
-    @property
-    def placed(self) -> tuple[str, ...]:
-        """Objects moved off Table A (placed or dropped), in order."""
-        return tuple(self._moved)
 
     def labels(self) -> frozenset[str]:
         """Objects resting upright in their slot on Table B, judged from the physical state."""
@@ -99,8 +89,7 @@ class MujocoWorld:
         The request is checked at once; the action ends (and the trace grows) when the iterator is
         exhausted, so consume it fully before the next action.
         """
-        check_placeable(obj, self.layout.objects, tuple(self._moved))
-        self._moved.append(obj)
+        self._start_move(obj)
         return self._simulate(obj, drop)
 
     def _simulate(self, obj: str, drop: bool) -> Iterator[tuple[float, np.ndarray]]:

@@ -2,17 +2,14 @@
 
 from __future__ import annotations
 
-from .world import OBJECTS, check_placeable
+from .world import OBJECTS, MoveLog
 
 
-class TraceWorld:
+class TraceWorld(MoveLog):
     """TableWorld whose labels are the objects placed so far (dropped ones excluded)."""
 
     def __init__(self, seed: int = 0, objects: tuple[str, ...] = OBJECTS) -> None:
         self._objects = tuple(objects)
-        self._moved: list[str] = []
-        self._in_slot: set[str] = set()
-        self._trace: list[frozenset[str]] = []
         self.reset(seed)
 
     @property
@@ -20,24 +17,13 @@ class TraceWorld:
         """All object names."""
         return self._objects
 
-    @property
-    def trace(self) -> list[frozenset[str]]:
-        """Labels of the initial state and after every action."""
-        return list(self._trace)
-
-    @property
-    def placed(self) -> tuple[str, ...]:
-        """Objects moved off Table A, in order."""
-        return tuple(self._moved)
-
     def labels(self) -> frozenset[str]:
         """Objects recorded as placed (not dropped)."""
         return frozenset(self._in_slot)
 
     def place(self, obj: str, *, drop: bool = False) -> frozenset[str]:
         """Record `obj` as placed (or as dropped, which leaves its proposition false)."""
-        check_placeable(obj, self._objects, tuple(self._moved))
-        self._moved.append(obj)
+        self._start_move(obj)
         if not drop:
             self._in_slot.add(obj)
         labels = self.labels()
@@ -46,8 +32,8 @@ class TraceWorld:
 
     def reset(self, seed: int = 0) -> None:
         """Forget every placement; the seed is accepted for interface parity and has no effect."""
-        self._moved.clear()
-        self._in_slot.clear()
+        self._moved: list[str] = []
+        self._in_slot: set[str] = set()
         self._trace = [self.labels()]
 
     def close(self) -> None:

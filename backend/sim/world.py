@@ -70,3 +70,32 @@ def check_sequence(objs: Sequence[str], objects: tuple[str, ...], moved: Sequenc
     for obj in objs:
         check_placeable(obj, objects, tuple(so_far))
         so_far.append(obj)
+
+
+class MoveLog:
+    """What every world records the same way: the objects moved off Table A and the labels after each action.
+
+    A world sets `_moved` and `_trace` in reset() and calls `_start_move(obj)` before it moves anything."""
+
+    _moved: list[str]
+    _trace: list[frozenset[str]]
+
+    @property
+    def objects(self) -> tuple[str, ...]:
+        """All object names (the world's own)."""
+        raise NotImplementedError
+
+    @property
+    def trace(self) -> list[frozenset[str]]:
+        """Labels of the initial state and after every action since the last reset."""
+        return list(self._trace)
+
+    @property
+    def placed(self) -> tuple[str, ...]:
+        """Objects moved off Table A (placed or dropped), in order."""
+        return tuple(self._moved)
+
+    def _start_move(self, obj: str) -> None:
+        """Check that `obj` can be moved now (PlacementError naming why not) and log it as moved."""
+        check_placeable(obj, self.objects, tuple(self._moved))
+        self._moved.append(obj)
