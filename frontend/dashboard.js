@@ -4,6 +4,7 @@
 
 import * as api from "./dashboard-api.js";
 import { PALETTE, lineChart, quatYaw, tableView } from "./charts.js";
+import { h, pretty } from "./dom.js";
 
 const POLL_MS = 4000;
 const app = document.getElementById("app");
@@ -13,24 +14,6 @@ let cleanups = [];
 
 // ---------------------------------------------------------------- small DOM helpers
 
-/** An element with attributes ({class, onclick, ...}) and children (strings become text). */
-function h(tag, attrs = {}, ...children) {
-  const el = document.createElement(tag);
-  for (const [key, value] of Object.entries(attrs ?? {})) {
-    if (value === null || value === undefined || value === false) continue;
-    if (key.startsWith("on")) el.addEventListener(key.slice(2), value);
-    else if (key === "class") el.className = value;
-    else if (key in el && typeof value !== "string") el[key] = value;
-    else el.setAttribute(key, value === true ? "" : value);
-  }
-  for (const child of children.flat()) {
-    if (child === null || child === undefined || child === false) continue;
-    el.append(child instanceof Node ? child : document.createTextNode(String(child)));
-  }
-  return el;
-}
-
-const objectName = (name) => name.replaceAll("_", " ");
 function pct(p) {
   if (p === null || p === undefined) return "–";
   if (p < 0.001) return "<0.1%";
@@ -494,9 +477,9 @@ async function participantView(studyId, participantId) {
 
 function eventDetails(e) {
   const pl = e.payload;
-  if (e.kind === "place") return `placed the ${objectName(pl.object)}`;
+  if (e.kind === "place") return `placed the ${pretty(pl.object)}`;
   if (e.kind === "assessment") return pl.acceptable === null ? "no verdict" : pl.acceptable ? "acceptable" : "unacceptable";
-  if (e.kind === "execution_started") return `robot: ${(pl.events ?? []).map(objectName).join(", ")}`;
+  if (e.kind === "execution_started") return `robot: ${(pl.events ?? []).map(pretty).join(", ")}`;
   if (e.kind === "task_started") return `${pl.task}, ${pl.protocol}, seed ${pl.seed}`;
   if (e.kind === "completed") return `code ${pl.completion_code}`;
   return "";
@@ -582,7 +565,7 @@ function traceChips(trace) {
   for (let k = 1; k < trace.length; k++) {
     const added = trace[k].filter((o) => !trace[k - 1].includes(o));
     const removed = trace[k - 1].filter((o) => !trace[k].includes(o));
-    const text = [...added.map(objectName), ...removed.map((o) => `−${objectName(o)}`)].join(" + ") || "(no change)";
+    const text = [...added.map(pretty), ...removed.map((o) => `−${pretty(o)}`)].join(" + ") || "(no change)";
     out.push(h("span", { class: "chip" }, text));
   }
   return h("span", { class: "trace" }, out.length ? out : h("span", { class: "muted small" }, "nothing placed"));
@@ -702,5 +685,5 @@ function replayPlayer(data) {
     : "No recording of this execution (trace robot): the trace is replayed step by step.";
   return h("div", { class: "replay", "data-source": data.source }, view.element,
     h("div", { class: "row controls" }, play, slider, speed, clock),
-    h("p", { class: "muted small" }, source, " Objects: ", (data.objects ?? []).map(objectName).join(", ") || "none"));
+    h("p", { class: "muted small" }, source, " Objects: ", (data.objects ?? []).map(pretty).join(", ") || "none"));
 }

@@ -1,22 +1,8 @@
 // What the participant sees at each stage: functions from (state, handlers) to DOM nodes. No fetching
 // here; participant.js owns the state and passes callbacks. Plain words only: no formulas, no jargon.
 
-export function h(tag, attrs = {}, ...children) {
-  const el = document.createElement(tag);
-  for (const [name, value] of Object.entries(attrs)) {
-    if (value === false || value === null || value === undefined) continue;
-    if (name.startsWith("on")) el.addEventListener(name.slice(2), value);
-    else if (name === "class") el.className = value;
-    else el.setAttribute(name, value === true ? "" : value);
-  }
-  for (const child of children.flat()) {
-    if (child === null || child === undefined || child === false) continue;
-    el.append(child instanceof Node ? child : document.createTextNode(String(child)));
-  }
-  return el;
-}
+import { h, pretty } from "./dom.js";
 
-export const pretty = (obj) => obj.replaceAll("_", " ");
 const list = (objs) => (objs.length ? objs.map(pretty).join(", ") : "nothing yet");
 const GOAL_PICTURES = { task1: "goal-task1.png", task2: "goal-task2.png" };
 const STEP_NAMES = { practice: "Practice round", demonstration: "Demonstration", query: "Question", test: "Test" };

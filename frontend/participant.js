@@ -3,6 +3,7 @@
 // each stage with participant-views.js. See docs/frontend.md.
 
 import { ApiError, ParticipantApi, assetUrl, randomId, tokenFromLocation } from "./api.js";
+import { h } from "./dom.js";
 import * as views from "./participant-views.js";
 
 const TICK_MS = 1000;
@@ -137,7 +138,7 @@ function render(force = false) {
       if (intro) { showScreen(views.taskIntroView(state, withPending)); break; }
       renderTask(withPending, moved);
       break;
-    default: showScreen(views.h("p", {}, `Unknown stage ${state.stage}.`));
+    default: showScreen(h("p", {}, `Unknown stage ${state.stage}.`));
   }
   if (moved) {
     window.scrollTo(0, 0);

@@ -11,6 +11,7 @@ ASSETS = {
     "dashboard.js": "text/javascript",
     "dashboard-api.js": "text/javascript",
     "charts.js": "text/javascript",
+    "dom.js": "text/javascript",
     "dashboard.css": "text/css",
 }
 HEADERS = {

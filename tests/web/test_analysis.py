@@ -283,7 +283,7 @@ def test_the_dashboard_page_and_only_its_own_assets_are_served(app_client: Any) 
     assert '<script type="module" src="/dashboard/assets/dashboard.js">' in page.text
     assert "script-src 'self'" in page.headers["content-security-policy"]
     for name, kind in (("dashboard.js", "text/javascript"), ("dashboard-api.js", "text/javascript"),
-                       ("charts.js", "text/javascript"), ("dashboard.css", "text/css")):
+                       ("charts.js", "text/javascript"), ("dom.js", "text/javascript"), ("dashboard.css", "text/css")):
         response = app_client.get(f"/dashboard/assets/{name}")
         assert response.status_code == 200 and response.headers["content-type"].startswith(kind), name
     for name in ("dashboard.html", "api.js", "..%2Fpyproject.toml", "nope.js"):

@@ -73,7 +73,8 @@ def test_the_page_its_assets_and_the_viewer_page(mujoco_client):
     page = mujoco_client.get(f"/p/{token}")
     assert page.status_code == 200 and "participant.js" in page.text
     assert page.headers["referrer-policy"] == "no-referrer"
-    for name in ("api.js", "participant.js", "participant-views.js", "style.css", "goal-task1.png", "goal-task2.png"):
+    for name in ("api.js", "participant.js", "participant-views.js", "dom.js", "style.css", "goal-task1.png",
+                 "goal-task2.png"):
         assert mujoco_client.get(f"/participant/assets/{name}").status_code == 200, name
     assert mujoco_client.get("/participant/assets/dashboard.js").status_code == 404
     assert mujoco_client.get("/participant/assets/..%2Fbackend%2Fconfig.py").status_code == 404
