@@ -28,3 +28,12 @@ class InvalidInput(TableTeachError):
 
 class NotAuthenticated(TableTeachError):
     """Missing or wrong credentials (HTTP 401)."""
+
+
+class TryLater(TableTeachError):
+    """Not now: too many wrong attempts (HTTP 429) or the database is busy or missing (HTTP 503)."""
+
+    def __init__(self, message: str, *, retry_after: int, status: int = 503, state: Any = None) -> None:
+        super().__init__(message, state=state)
+        self.retry_after = retry_after
+        self.status = status

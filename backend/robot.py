@@ -4,8 +4,8 @@ The participant places objects one at a time during a demonstration (each placem
 labels); the robot carries out a query or test execution and reports its trace when it has finished.
 The server records the labels and traces the robot reports, never ones it recomputes itself. Tables
 are keyed by a string the server chooses (one per participant and task). The MuJoCo robot
-(tableteach.sim.robot) implements the same protocol plus ViewingRobot (a 3D view per table) and is
-selected by Settings.robot = "mujoco"; make_robot imports it only then, so the server runs without mujoco.
+(tableteach.sim.robot) implements the same protocol plus ViewingRobot (a 3D view per table); this seam
+never imports it: the app is composed with one robot or the other in tableteach.web.robots.
 """
 
 from __future__ import annotations
@@ -14,7 +14,6 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Protocol, runtime_checkable
 
 from .core.domain import Domain, get_domain
@@ -167,15 +166,3 @@ class TraceRobot:
     def close(self, key: str) -> None:
         """Forget the table."""
         self.release(key)
-
-
-def make_robot(name: str, *, seconds_per_object: float = 0.0, speed: float = 1.0, data_dir: Path | str = "var/data",
-               idle_seconds: float = 600.0) -> Robot:
-    """The robot implementation a Settings.robot value names (the MuJoCo one is imported only when chosen)."""
-    if name == "trace":
-        return TraceRobot("dinner", seconds_per_object)
-    if name == "mujoco":
-        from .sim.robot import MujocoRobot  # imports mujoco and viser
-
-        return MujocoRobot(speed=speed, data_dir=Path(data_dir), idle_seconds=idle_seconds)
-    raise ValueError(f"unknown robot {name!r}; expected 'trace' or 'mujoco'")

@@ -13,7 +13,7 @@ from ..config import Settings
 from ..db import repository as repo
 from ..db.engine import Database
 from ..errors import Conflict
-from ..robot import Robot, make_robot
+from ..robot import Robot, TraceRobot
 from .planning import Planner
 
 
@@ -67,11 +67,10 @@ class Context:
     planner: Planner = field(default_factory=Planner)
 
     @staticmethod
-    def from_settings(settings: Settings) -> "Context":
-        """Open the database and build the robot the settings name."""
-        robot = make_robot(settings.robot, seconds_per_object=settings.robot_seconds_per_object,
-                           speed=settings.robot_speed, data_dir=settings.data_dir,
-                           idle_seconds=settings.viewer_idle_minutes * 60)
+    def from_settings(settings: Settings, robot: Robot | None = None) -> "Context":
+        """Open the database; the robot is the one given (the app composes it) or else the trace robot."""
+        if robot is None:
+            robot = TraceRobot("dinner", settings.robot_seconds_per_object)
         return Context(Database(settings.database_url), robot, settings)
 
 

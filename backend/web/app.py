@@ -11,7 +11,8 @@ from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
 from . import analysis, dashboard, viewer
-from .auth import experimenter_checker
+from .auth import FailureLimiter, experimenter_checker
+from .robots import make_robot
 
 DESCRIPTION = """Study server for teaching a robot to set a dinner table from demonstrations and verdicts.
 
@@ -23,7 +24,7 @@ experimenters with the server's experimenter token. Every participant action acc
 def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI:
     """The FastAPI application for these settings (ValueError if the experimenter secret is unacceptable)."""
     checker, dev_token = experimenter_checker(settings)
-    ctx = context or Context.from_settings(settings)
+    ctx = context or Context.from_settings(settings, make_robot(settings))
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
@@ -39,6 +40,7 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.settings = settings
     app.state.experimenter = checker
     app.state.dev_token = dev_token
+    app.state.key_failures = FailureLimiter()
     errors.install(app)
     for module in (participants, studies, exports, analysis, dashboard, viewer, pages):
         app.include_router(module.router)

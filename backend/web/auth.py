@@ -1,26 +1,45 @@
-"""Experimenter credentials: PBKDF2 hashes, constant-time checks, and the refusal of weak secrets outside dev mode."""
+"""Experimenter credentials: a SHA-256 digest compared in constant time, generated keys, and a limit on wrong keys.
+
+The experimenter key is a generated high-entropy token (`tableteach key`), so a fast digest is enough: a wrong
+key costs microseconds, not the ~0.1 s of CPU a password hash would (which let wrong keys starve the server).
+PBKDF2 hashes from earlier versions (pbkdf2_sha256$...) are still accepted; their checks run in the thread pool.
+"""
 
 from __future__ import annotations
 
 import base64
 import hashlib
 import hmac
+import math
 import secrets
 import threading
+import time
+from collections import OrderedDict, deque
 
 from ..config import Settings
 
-ITERATIONS = 200_000
-WEAK_SECRETS = {"", "changeme", "change-me", "password", "secret", "admin", "dev", "tableteach", "token", "test"}
-MIN_LENGTH = 12
+MIN_KEY_LENGTH = 32
+MIN_KEY_BITS = 128  # estimated as length x log2(distinct characters)
 
 
-def hash_secret(secret: str, *, iterations: int = ITERATIONS) -> str:
-    """A salted PBKDF2-SHA256 hash: pbkdf2_sha256$iterations$salt$digest."""
-    salt = secrets.token_bytes(16)
-    digest = hashlib.pbkdf2_hmac("sha256", secret.encode(), salt, iterations)
-    b64 = lambda b: base64.urlsafe_b64encode(b).decode().rstrip("=")  # noqa: E731
-    return f"pbkdf2_sha256${iterations}${b64(salt)}${b64(digest)}"
+def generate_key() -> str:
+    """A new experimenter key: 32 random bytes, URL-safe (43 characters)."""
+    return secrets.token_urlsafe(32)
+
+
+def hash_secret(secret: str) -> str:
+    """The stored form of a key: sha256$<hex digest> (the key itself is random, so no salt or stretching)."""
+    return "sha256$" + hashlib.sha256(secret.encode()).hexdigest()
+
+
+def key_problem(key: str) -> str | None:
+    """Why a key does not look generated (too short or too repetitive), or None if it is acceptable."""
+    distinct = len(set(key))
+    bits = len(key) * math.log2(distinct) if distinct > 1 else 0.0
+    if len(key) < MIN_KEY_LENGTH or bits < MIN_KEY_BITS:
+        return (f"expected a generated key of at least {MIN_KEY_LENGTH} varied characters (about {MIN_KEY_BITS} bits), "
+                f"got {len(key)} characters with {distinct} distinct; make one with `tableteach key`")
+    return None
 
 
 def _unb64(text: str) -> bytes:
@@ -28,49 +47,102 @@ def _unb64(text: str) -> bytes:
 
 
 class SecretChecker:
-    """Checks a presented secret against a stored hash; remembers verified secrets (as SHA-256) to stay fast."""
+    """Checks a presented key against its stored form: sha256$<hex> (fast) or a legacy pbkdf2_sha256 hash."""
 
     def __init__(self, stored_hash: str) -> None:
+        scheme, _, rest = stored_hash.partition("$")
+        self._pbkdf2: tuple[int, bytes, bytes] | None = None
         try:
-            scheme, iterations, salt, digest = stored_hash.split("$")
-            if scheme != "pbkdf2_sha256":
+            if scheme == "sha256":
+                self._digest = bytes.fromhex(rest)
+                if len(self._digest) != 32:
+                    raise ValueError(rest)
+            elif scheme == "pbkdf2_sha256":
+                iterations, salt, digest = rest.split("$")
+                self._pbkdf2 = (int(iterations), _unb64(salt), _unb64(digest))
+                self._digest = b""
+            else:
                 raise ValueError(scheme)
-            self._iterations, self._salt, self._digest = int(iterations), _unb64(salt), _unb64(digest)
         except ValueError as exc:
-            raise ValueError("experimenter_token_hash must look like pbkdf2_sha256$<iterations>$<salt>$<digest> "
-                             "(make one with `tableteach hash-token`)") from exc
-        self._verified: set[bytes] = set()
+            raise ValueError("experimenter_token_hash must look like sha256$<64 hex digits> (make one with "
+                             "`tableteach hash-token`) or pbkdf2_sha256$<iterations>$<salt>$<digest>") from exc
+        self._verified: set[bytes] = set()  # legacy hashes: SHA-256 of keys already verified
         self._lock = threading.Lock()
 
+    @property
+    def slow(self) -> bool:
+        """Whether a check may cost real CPU (a legacy PBKDF2 hash: run it off the event loop)."""
+        return self._pbkdf2 is not None
+
     def check(self, secret: str) -> bool:
-        """Whether the secret matches the stored hash."""
+        """Whether the secret is the key (constant-time comparison of digests)."""
         quick = hashlib.sha256(secret.encode()).digest()
+        if self._pbkdf2 is None:
+            return hmac.compare_digest(quick, self._digest)
         with self._lock:
             if quick in self._verified:
                 return True
-        ok = hmac.compare_digest(
-            hashlib.pbkdf2_hmac("sha256", secret.encode(), self._salt, self._iterations), self._digest
-        )
+        iterations, salt, digest = self._pbkdf2
+        ok = hmac.compare_digest(hashlib.pbkdf2_hmac("sha256", secret.encode(), salt, iterations), digest)
         if ok:
             with self._lock:
                 self._verified.add(quick)
         return ok
 
 
-def experimenter_checker(settings: Settings) -> tuple[SecretChecker, str | None]:
-    """The checker for the configured secret and, in dev mode without one, a generated development token.
+class FailureLimiter:
+    """At most `limit` wrong keys per client address in a sliding `window`; then that address waits."""
 
-    Outside dev mode a missing, short or well-known secret is refused (ValueError naming the setting)."""
+    def __init__(self, limit: int = 20, window: float = 60.0, max_clients: int = 10_000) -> None:
+        self.limit, self.window, self.max_clients = limit, window, max_clients
+        self._failures: OrderedDict[str, deque[float]] = OrderedDict()
+        self._lock = threading.Lock()
+
+    def _recent(self, client: str, now: float) -> deque[float] | None:
+        times = self._failures.get(client)
+        if times is None:
+            return None
+        while times and times[0] <= now - self.window:
+            times.popleft()
+        if not times:
+            del self._failures[client]
+            return None
+        return times
+
+    def retry_after(self, client: str) -> int:
+        """Seconds this address must wait before its next attempt (0: it may try now)."""
+        now = time.monotonic()
+        with self._lock:
+            times = self._recent(client, now)
+            if times is None or len(times) < self.limit:
+                return 0
+            return max(1, math.ceil(times[0] + self.window - now))
+
+    def failed(self, client: str) -> None:
+        """Count a wrong key from this address (the oldest addresses are forgotten beyond max_clients)."""
+        now = time.monotonic()
+        with self._lock:
+            times = self._recent(client, now) or deque()
+            times.append(now)
+            self._failures[client] = times
+            self._failures.move_to_end(client)
+            while len(self._failures) > self.max_clients:
+                self._failures.popitem(last=False)
+
+
+def experimenter_checker(settings: Settings) -> tuple[SecretChecker, str | None]:
+    """The checker for the configured key and, in dev mode without one, a generated development key.
+
+    Outside dev mode a missing key, or one that does not look generated, is refused (ValueError naming the setting)."""
     token = settings.experimenter_token.get_secret_value() if settings.experimenter_token else None
     if settings.experimenter_token_hash:
         return SecretChecker(settings.experimenter_token_hash), None
-    if token is not None and (settings.dev_mode or (len(token) >= MIN_LENGTH and token.lower() not in WEAK_SECRETS)):
-        return SecretChecker(hash_secret(token, iterations=1_000 if settings.dev_mode else ITERATIONS)), None
+    if token is not None and (settings.dev_mode or key_problem(token) is None):
+        return SecretChecker(hash_secret(token)), None
     if settings.dev_mode:
-        generated = "dev-" + secrets.token_urlsafe(18)
-        return SecretChecker(hash_secret(generated, iterations=1_000)), generated
+        generated = "dev-" + generate_key()
+        return SecretChecker(hash_secret(generated)), generated
     if token is None:
-        raise ValueError("no experimenter secret: set TABLETEACH_EXPERIMENTER_TOKEN (or _HASH), "
-                         "or run in dev mode (TABLETEACH_DEV_MODE=1 / --dev) for a generated one")
-    raise ValueError(f"TABLETEACH_EXPERIMENTER_TOKEN is too weak: expected at least {MIN_LENGTH} characters and not a "
-                     "well-known default (outside dev mode)")
+        raise ValueError("no experimenter key: set TABLETEACH_EXPERIMENTER_TOKEN (make one with `tableteach key`) "
+                         "or _HASH, or run in dev mode (TABLETEACH_DEV_MODE=1 / --dev) for a generated one")
+    raise ValueError(f"TABLETEACH_EXPERIMENTER_TOKEN is too weak outside dev mode: {key_problem(token)}")

@@ -1,4 +1,4 @@
-"""Server subcommands of `tableteach`: serve, teach (scripted teacher over HTTP), export, hash-token."""
+"""Server subcommands of `tableteach`: serve, teach (scripted teacher over HTTP), export, key, hash-token."""
 
 from __future__ import annotations
 
@@ -98,13 +98,24 @@ def cmd_export(args: argparse.Namespace) -> dict:
     return {"study_id": args.study, "out": str(args.out), "rows": rows}
 
 
+def cmd_key(args: argparse.Namespace) -> dict:
+    """A new generated experimenter key (for TABLETEACH_EXPERIMENTER_TOKEN) and its hash (for _HASH)."""
+    from .auth import generate_key, hash_secret
+
+    key = generate_key()
+    return {"experimenter_token": key, "experimenter_token_hash": hash_secret(key)}
+
+
 def cmd_hash_token(args: argparse.Namespace) -> dict:
-    """Hash an experimenter secret for TABLETEACH_EXPERIMENTER_TOKEN_HASH (reads it from stdin)."""
-    from .auth import hash_secret
+    """Hash an experimenter key for TABLETEACH_EXPERIMENTER_TOKEN_HASH (reads it from stdin)."""
+    from .auth import hash_secret, key_problem
 
     secret = sys.stdin.readline().rstrip("\n")
     if not secret:
-        raise ValueError("no secret on stdin; pipe it in, e.g. `printf %s \"$TOKEN\" | tableteach hash-token`")
+        raise ValueError("no key on stdin; pipe it in, e.g. `printf %s \"$TOKEN\" | tableteach hash-token`")
+    problem = key_problem(secret)
+    if problem is not None:
+        raise ValueError(f"this key is too weak: {problem}")
     return {"experimenter_token_hash": hash_secret(secret)}
 
 
@@ -140,5 +151,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     export.add_argument("--out", required=True, help="folder to write participants/events/beliefs/questionnaire.csv")
     export.set_defaults(run=cmd_export)
 
-    hash_token = sub.add_parser("hash-token", help="hash an experimenter secret read from stdin")
+    key = sub.add_parser("key", help="generate an experimenter key (TABLETEACH_EXPERIMENTER_TOKEN) and its hash")
+    key.set_defaults(run=cmd_key)
+
+    hash_token = sub.add_parser("hash-token", help="hash an experimenter key read from stdin")
     hash_token.set_defaults(run=cmd_hash_token)

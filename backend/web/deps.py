@@ -6,10 +6,11 @@ from typing import Annotated
 
 from fastapi import Depends, Header, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
+from starlette.concurrency import run_in_threadpool
 
-from ..errors import NotAuthenticated
+from ..errors import NotAuthenticated, TryLater
 from ..services import Context
-from .auth import SecretChecker
+from .auth import FailureLimiter, SecretChecker
 
 _participant_bearer = HTTPBearer(auto_error=False, scheme_name="ParticipantToken",
                                  description="the participant's token from their link (/p/{token})")
@@ -32,15 +33,24 @@ async def participant_token(
     return credentials.credentials
 
 
-def require_experimenter(
+async def require_experimenter(
     request: Request,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_experimenter_bearer)],
 ) -> None:
-    """Refuse the request unless it carries the experimenter secret."""
+    """Refuse the request unless it carries the experimenter key; too many wrong keys from one address get 429."""
     checker: SecretChecker = request.app.state.experimenter
+    limiter: FailureLimiter = request.app.state.key_failures
     if credentials is None or not credentials.credentials:
         raise NotAuthenticated("experimenter endpoint: send Authorization: Bearer <experimenter token>")
-    if not checker.check(credentials.credentials):
+    client = request.client.host if request.client else "unknown"
+    wait = limiter.retry_after(client)
+    if wait:
+        raise TryLater(f"too many wrong experimenter tokens from this address; try again in {wait} s",
+                       retry_after=wait, status=429)
+    ok = (await run_in_threadpool(checker.check, credentials.credentials) if checker.slow
+          else checker.check(credentials.credentials))
+    if not ok:
+        limiter.failed(client)
         raise NotAuthenticated("wrong experimenter token")
 
 

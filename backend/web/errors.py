@@ -10,7 +10,7 @@ from fastapi.responses import JSONResponse
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..core.session import ProtocolError
-from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, TableTeachError
+from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, TableTeachError, TryLater
 
 log = logging.getLogger(__name__)
 
@@ -34,6 +34,8 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(TableTeachError)
     async def _service_error(_request: Request, exc: TableTeachError) -> JSONResponse:
+        if isinstance(exc, TryLater):
+            return _answer(exc.status, exc.message, exc.state, {"Retry-After": str(exc.retry_after)})
         status = next((code for cls, code in STATUS.items() if isinstance(exc, cls)), 400)
         headers = {"WWW-Authenticate": "Bearer"} if status == 401 else None
         return _answer(status, exc.message, exc.state, headers)

@@ -64,11 +64,11 @@ def test_refuses_missing_or_weak_secrets_outside_dev_mode(tmp_path) -> None:
 
 
 def test_a_stored_hash_works_and_the_secret_itself_is_not_needed() -> None:
-    stored = hash_secret("a long enough experimenter secret", iterations=1000)
+    stored = hash_secret("a long enough experimenter secret")
     assert "a long enough" not in stored
     checker, generated = experimenter_checker(Settings(experimenter_token_hash=stored))
     assert generated is None
     assert checker.check("a long enough experimenter secret") and checker.check("a long enough experimenter secret")
     assert not checker.check("a long enough experimenter secreT")
-    with pytest.raises(ValueError, match="pbkdf2_sha256"):
+    with pytest.raises(ValueError, match="sha256"):
         SecretChecker("sha1$abc")

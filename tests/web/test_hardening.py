@@ -1,0 +1,111 @@
+"""Hardening (issue 13): the robot seam's imports, key checks, limits, id bounds, exports and headers."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+from typing import Any
+
+from tests.conftest import REPO
+
+
+def _imported_modules(path: Path) -> set[str]:
+    """Every module a source file imports, anywhere in it (relative imports keep their dots)."""
+    out: set[str] = set()
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, ast.Import):
+            out.update(alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom):
+            out.add("." * node.level + (node.module or ""))
+    return out
+
+
+def test_the_robot_seam_does_not_import_its_mujoco_implementation() -> None:
+    imported = _imported_modules(REPO / "backend" / "robot.py")
+    assert not [m for m in imported if "sim" in m.split(".")], imported
+
+
+def test_the_app_is_composed_with_the_robot_the_settings_name(tmp_path: Path) -> None:
+    from tableteach.config import Settings
+    from tableteach.robot import TraceRobot
+    from tableteach.web.robots import make_robot
+
+    robot: Any = make_robot(Settings(robot="trace", robot_seconds_per_object=0.5, data_dir=tmp_path))
+    assert isinstance(robot, TraceRobot) and robot.seconds_per_object == 0.5
+
+
+# -- item 2 and 9: the experimenter key -------------------------------------------------------------------
+
+
+def test_a_wrong_key_costs_one_sha256_not_a_password_hash(monkeypatch) -> None:
+    import hashlib
+
+    from tableteach.config import Settings
+    from tableteach.web.auth import experimenter_checker
+
+    checker, _ = experimenter_checker(Settings(experimenter_token="test-experimenter-token-0123456789"))
+
+    def no_stretching(*_args: Any, **_kwargs: Any) -> bytes:
+        raise AssertionError("a key check must not run PBKDF2")
+
+    monkeypatch.setattr(hashlib, "pbkdf2_hmac", no_stretching)
+    assert not checker.check("wrong-key-of-a-similar-length-0123")
+    assert checker.check("test-experimenter-token-0123456789")
+
+
+def test_wrong_keys_from_one_address_are_limited_with_retry_after(app_client) -> None:
+    from .helpers import EXP, bearer
+
+    limit = app_client.app.state.key_failures.limit
+    for _ in range(limit):
+        assert app_client.get("/api/v1/studies", headers=bearer("wrong-key")).status_code == 401
+    for headers in (bearer("wrong-key"), EXP):  # while limited, even the right key waits: nothing is checked
+        response = app_client.get("/api/v1/studies", headers=headers)
+        assert response.status_code == 429, response.text
+        assert 1 <= int(response.headers["Retry-After"]) <= 60
+        assert "too many wrong experimenter tokens" in response.json()["detail"]
+
+
+def test_the_limiter_counts_each_address_and_forgets_old_failures(monkeypatch) -> None:
+    from tableteach.web import auth
+
+    clock = [1000.0]
+    monkeypatch.setattr(auth.time, "monotonic", lambda: clock[0])
+    limiter = auth.FailureLimiter(limit=3, window=60.0)
+    for _ in range(3):
+        limiter.failed("10.0.0.1")
+    assert limiter.retry_after("10.0.0.1") == 60 and limiter.retry_after("10.0.0.2") == 0
+    clock[0] += 61
+    assert limiter.retry_after("10.0.0.1") == 0
+
+
+def test_outside_dev_mode_the_key_must_look_generated(tmp_path: Path) -> None:
+    import pytest
+    from pydantic import SecretStr
+
+    from tableteach.config import Settings
+    from tableteach.web.auth import experimenter_checker, generate_key
+
+    for weak in ("aaaaaaaaaaaa", "a" * 64, "abcabcabcabcabcabcabcabcabcabcabcabc", "short-but-varied-123"):
+        with pytest.raises(ValueError, match="tableteach key"):
+            experimenter_checker(Settings(experimenter_token=SecretStr(weak)))
+    key = generate_key()
+    checker, _ = experimenter_checker(Settings(experimenter_token=SecretStr(key)))
+    assert checker.check(key) and not checker.check(key[:-1])
+    assert experimenter_checker(Settings(experimenter_token=SecretStr("aaaa"), dev_mode=True))[0].check("aaaa")
+
+
+def test_tableteach_key_prints_a_key_the_server_accepts() -> None:
+    import json
+    import subprocess
+    import sys
+
+    from tableteach.config import Settings
+    from tableteach.web.auth import experimenter_checker
+
+    out = subprocess.run([sys.executable, "-m", "tableteach.cli", "key"], capture_output=True, text=True, check=True)
+    made = json.loads(out.stdout)
+    checker, _ = experimenter_checker(Settings(experimenter_token=made["experimenter_token"]))
+    assert checker.check(made["experimenter_token"])
+    by_hash, _ = experimenter_checker(Settings(experimenter_token_hash=made["experimenter_token_hash"]))
+    assert by_hash.check(made["experimenter_token"]) and not by_hash.check("x" + made["experimenter_token"])
