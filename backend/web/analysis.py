@@ -4,11 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter, Path, Query
+from fastapi import APIRouter, Query
 from pydantic import BaseModel, Field
 
 from .. import analysis
-from .deps import ContextDep, Experimenter
+from .deps import ContextDep, Experimenter, ParticipantId, StepIndex
 from .schemas import ParticipantBaseOut, error_responses
 
 router = APIRouter(prefix="/api/v1/studies", tags=["analysis"], dependencies=[Experimenter],
@@ -174,7 +174,7 @@ def live(study_id: str, ctx: ContextDep,
 
 
 @router.get("/{study_id}/participants/{participant_id}/history", response_model=HistoryOut)
-def history(study_id: str, participant_id: int, ctx: ContextDep) -> dict[str, Any]:
+def history(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict[str, Any]:
     """Every event, every execution with its trace and verdict, and the belief after each learning step."""
     return analysis.participant_history(ctx, study_id, participant_id)
 
@@ -238,8 +238,8 @@ class ReplayOut(BaseModel):
 
 @router.get("/{study_id}/participants/{participant_id}/replays/{task_index}/{step_kind}/{step_index}",
             response_model=ReplayOut)
-def replay(study_id: str, participant_id: int, task_index: Annotated[int, Path(ge=0)], step_kind: StepKind,
-           step_index: Annotated[int, Path(ge=0)], ctx: ContextDep) -> dict[str, Any]:
+def replay(study_id: str, participant_id: ParticipantId, task_index: StepIndex, step_kind: StepKind,
+           step_index: StepIndex, ctx: ContextDep) -> dict[str, Any]:
     """A step's replay: the robot's recorded poses when saved (MuJoCo robot), else its trace (indices from 0)."""
     return analysis.replay(ctx, study_id, participant_id, task_index=task_index, step_kind=step_kind,
                            step_index=step_index)

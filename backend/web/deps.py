@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import Depends, Header, Request
+from fastapi import Depends, Header, Path, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from starlette.concurrency import run_in_threadpool
 
@@ -62,3 +62,8 @@ IdempotencyKey = Annotated[
            description="a fresh id per action (e.g. a UUID); repeating it repeats nothing"),
 ]
 Experimenter = Depends(require_experimenter)
+# Ids and indices in paths are bounded to what the database stores (a 32-bit integer column): a larger number
+# is a 422 naming the parameter, never an OverflowError deep in the database driver.
+MAX_ID = 2**31 - 1
+ParticipantId = Annotated[int, Path(ge=1, le=MAX_ID, description="the participant's number in the study")]
+StepIndex = Annotated[int, Path(ge=0, le=10_000, description="counts from 0")]

@@ -52,6 +52,11 @@ def install(app: FastAPI) -> None:
     async def _http(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
         return _answer(exc.status_code, str(exc.detail), None, getattr(exc, "headers", None))
 
+    @app.exception_handler(OverflowError)
+    async def _too_large(request: Request, exc: OverflowError) -> JSONResponse:
+        log.warning("number out of range on %s %s: %s", request.method, request.url.path, exc)
+        return _answer(422, "a number in the request is too large: expected ids and counts below 2^31")
+
     @app.exception_handler(Exception)
     async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
         log.exception("unexpected error on %s %s", request.method, request.url.path)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from fastapi import APIRouter, status
 
 from .. import services
-from .deps import ContextDep, Experimenter
+from .deps import ContextDep, Experimenter, ParticipantId
 from .schemas import BeliefOut, ParticipantRowOut, StudyIn, StudyOut, error_responses
 
 ERRORS = error_responses(400, 401, 404, 409, 422)
@@ -49,6 +49,6 @@ def list_participants(study_id: str, ctx: ContextDep) -> list[dict]:
 
 
 @router.get("/{study_id}/participants/{participant_id}/belief", response_model=BeliefOut)
-def belief(study_id: str, participant_id: int, ctx: ContextDep) -> dict:
+def belief(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict:
     """Per task: the learner's top formulas in plain English, entropy, similarity to the ground truth."""
     return services.belief_summary(ctx, study_id, participant_id)

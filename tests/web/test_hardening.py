@@ -109,3 +109,24 @@ def test_tableteach_key_prints_a_key_the_server_accepts() -> None:
     assert checker.check(made["experimenter_token"])
     by_hash, _ = experimenter_checker(Settings(experimenter_token_hash=made["experimenter_token_hash"]))
     assert by_hash.check(made["experimenter_token"]) and not by_hash.check("x" + made["experimenter_token"])
+
+
+# -- item 4: ids past 2^63 -----------------------------------------------------------------------------------
+
+
+def test_ids_past_the_database_range_are_a_422_naming_the_parameter(app_client) -> None:
+    from .helpers import EXP, make_study
+
+    study = make_study(app_client)
+    base = f"/api/v1/studies/{study}/participants"
+    for big in (2**63, 2**64 + 1, 2**31, -1, 0):
+        for path in (f"{base}/{big}/belief", f"{base}/{big}/history", f"{base}/{big}/replays/0/query/0"):
+            response = app_client.get(path, headers=EXP)
+            assert response.status_code == 422, (path, response.text)
+            assert "participant_id" in response.json()["detail"]
+    for big in (2**63, 10**6, -1):
+        for path in (f"{base}/1/replays/{big}/query/0", f"{base}/1/replays/0/query/{big}"):
+            response = app_client.get(path, headers=EXP)
+            assert response.status_code == 422, (path, response.text)
+            assert "_index" in response.json()["detail"]
+    assert app_client.get(f"/api/v1/studies/{study}/participants/{2**31 - 1}/belief", headers=EXP).status_code == 404
