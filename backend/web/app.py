@@ -12,6 +12,7 @@ from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
 from . import analysis, dashboard, viewer
 from .auth import FailureLimiter, experimenter_checker
+from .limits import BodyLimit
 from .robots import make_robot
 
 DESCRIPTION = """Study server for teaching a robot to set a dinner table from demonstrations and verdicts.
@@ -42,6 +43,7 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.dev_token = dev_token
     app.state.key_failures = FailureLimiter()
     errors.install(app)
+    app.add_middleware(BodyLimit)
     for module in (participants, studies, exports, analysis, dashboard, viewer, pages):
         app.include_router(module.router)
     return app

@@ -31,6 +31,7 @@ def cmd_serve(args: argparse.Namespace) -> None:
     from .. import services
     from ..db.migrate import upgrade_head
     from .app import create_app
+    from .limits import LimitedHttpToolsProtocol
 
     settings = _settings(args)
     app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
@@ -48,7 +49,7 @@ def cmd_serve(args: argparse.Namespace) -> None:
         lines.append(f"development experimenter token (dev mode only, new on every start): {app.state.dev_token}")
     print("\n".join(lines), flush=True)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, access_log=False,
-                timeout_graceful_shutdown=5)
+                timeout_graceful_shutdown=5, http=LimitedHttpToolsProtocol)
 
 
 def _safe_url(url: str) -> str:

@@ -130,3 +130,57 @@ def test_ids_past_the_database_range_are_a_422_naming_the_parameter(app_client) 
             assert response.status_code == 422, (path, response.text)
             assert "_index" in response.json()["detail"]
     assert app_client.get(f"/api/v1/studies/{study}/participants/{2**31 - 1}/belief", headers=EXP).status_code == 404
+
+
+# -- item 3: size limits -------------------------------------------------------------------------------------
+
+
+def test_a_body_over_one_megabyte_is_refused_with_413(app_client) -> None:
+    from .helpers import make_study
+
+    study = make_study(app_client)
+    big = b'{"prolific_pid": "' + b"x" * (1 << 20) + b'"}'
+    response = app_client.post(f"/api/v1/studies/{study}/join", content=big,
+                               headers={"Content-Type": "application/json"})
+    assert response.status_code == 413, response.text
+    assert "at most 1048576 bytes" in response.json()["detail"]
+
+    def chunks() -> Any:  # no Content-Length: counted while it is read
+        for _ in range(5):
+            yield b" " * (300 << 10)
+
+    response = app_client.post(f"/api/v1/studies/{study}/join", content=chunks(),
+                               headers={"Content-Type": "application/json"})
+    assert response.status_code == 413, response.text
+    assert app_client.post(f"/api/v1/studies/{study}/join", json={}).status_code == 201
+
+
+def _raw_request(port: int, request: bytes, *, read_timeout: float = 10.0) -> bytes:
+    """Send raw bytes to the server and read until it closes the connection (or the timeout)."""
+    import socket
+
+    with socket.create_connection(("127.0.0.1", port), timeout=read_timeout) as sock:
+        try:
+            sock.sendall(request)
+        except (BrokenPipeError, ConnectionResetError):
+            pass  # the server answered and closed before reading everything: what we want
+        out = b""
+        try:
+            while chunk := sock.recv(65536):
+                out += chunk
+        except (ConnectionResetError, TimeoutError):
+            pass
+        return out
+
+
+def test_the_server_refuses_huge_bodies_unread_and_huge_headers(server_factory) -> None:
+    server = server_factory()
+    # Announces 100 MB but sends only the headers: the answer comes at once, nothing is waited for.
+    answer = _raw_request(server.port, b"POST /api/v1/studies/demo/join HTTP/1.1\r\nHost: x\r\n"
+                                       b"Content-Type: application/json\r\nContent-Length: 100000000\r\n\r\n")
+    assert answer.startswith(b"HTTP/1.1 413"), answer[:200]
+    answer = _raw_request(server.port, b"GET /healthz HTTP/1.1\r\nHost: x\r\nX-Big: " + b"a" * (1 << 20) + b"\r\n\r\n")
+    assert answer.startswith(b"HTTP/1.1 431"), answer[:200]
+    assert b"request headers too large" in answer
+    ok = _raw_request(server.port, b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
+    assert ok.startswith(b"HTTP/1.1 200"), ok[:200]
