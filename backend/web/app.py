@@ -36,7 +36,10 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
             shutdown()
         ctx.db.dispose()
 
-    app = FastAPI(title="TableTeach study server", version=app_version(), description=DESCRIPTION, lifespan=lifespan)
+    # /docs and /redoc load their scripts from a CDN: offered in dev mode only (/openapi.json is always served).
+    docs = {} if settings.dev_mode else {"docs_url": None, "redoc_url": None}
+    app = FastAPI(title="TableTeach study server", version=app_version(), description=DESCRIPTION, lifespan=lifespan,
+                  **docs)
     app.state.context = ctx
     app.state.settings = settings
     app.state.experimenter = checker

@@ -40,7 +40,8 @@ def cmd_serve(args: argparse.Namespace) -> None:
     lines = [f"TableTeach serving on http://{settings.host}:{settings.port} "
              f"(database {_safe_url(settings.database_url)}, "
              f"robot {settings.robot})",
-             f"dashboard: {base}/dashboard   API docs: {base}/docs"]
+             f"dashboard: {base}/dashboard   API schema: {base}/openapi.json"
+             + (f"   API docs (dev mode): {base}/docs" if settings.dev_mode else "")]
     if args.demo:
         study = services.seed_demo_study(app.state.context)
         lines += [f"demo study id: {study['id']}",

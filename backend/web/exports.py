@@ -14,14 +14,21 @@ from .. import services
 from .deps import ContextDep, Experimenter
 from .schemas import error_responses
 
-FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r")
+# Formula triggers, also in their full-width forms, which some spreadsheets fold to ASCII.
+FORMULA_STARTS = ("=", "+", "-", "@", "\t", "\r", "\n", "\uff1d", "\uff0b", "\uff0d", "\uff20")
 router = APIRouter(prefix="/api/v1/studies", tags=["exports"], dependencies=[Experimenter],
                    responses=error_responses(401, 404, 422))
 
 
+def needs_escape(value: str) -> bool:
+    """Whether a spreadsheet could read this text as a formula: it starts with whitespace or a line break
+    (spreadsheets trim them) or, after any, with one of FORMULA_STARTS."""
+    return bool(value) and (value[0].isspace() or value.lstrip().startswith(FORMULA_STARTS))
+
+
 def cell(value: Any) -> Any:
-    """A CSV cell: text starting like a formula gets a leading apostrophe (OWASP CSV injection)."""
-    if isinstance(value, str) and value.startswith(FORMULA_STARTS):
+    """A CSV cell: text that could start a formula gets a leading apostrophe (OWASP CSV injection)."""
+    if isinstance(value, str) and needs_escape(value):
         return "'" + value
     return value
 

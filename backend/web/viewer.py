@@ -81,16 +81,50 @@ def viewer_page(token: str, request: Request, ctx: ContextDep) -> Response:
     except NotAuthenticated:
         return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
     raw, packed = _client_bytes()
-    headers = {"Referrer-Policy": "no-referrer", "Cache-Control": "private, max-age=3600"}
+    headers = {"Referrer-Policy": "no-referrer", "Cache-Control": "private, max-age=3600",
+               "Content-Security-Policy": viewer_csp(request.headers.get("host", "")),
+               "X-Content-Type-Options": "nosniff"}
     if "gzip" in request.headers.get("accept-encoding", ""):
         return Response(packed, media_type="text/html; charset=utf-8", headers={**headers, "Content-Encoding": "gzip"})
     return Response(raw, media_type="text/html; charset=utf-8", headers=headers)
+
+
+def viewer_csp(host: str) -> str:
+    """The viewer page's Content-Security-Policy: framed only by this origin, talking only to it.
+
+    viser's client unpacks itself from an inline script and compiles WebAssembly, hence its script-src."""
+    sockets = f" ws://{host} wss://{host}" if host and all(c.isalnum() or c in ".-:[]" for c in host) else ""
+    return ("default-src 'self'; script-src 'self' 'unsafe-inline' 'unsafe-eval' 'wasm-unsafe-eval' blob: data:; "
+            "style-src 'self' 'unsafe-inline'; img-src 'self' data: blob:; font-src 'self' data:; "
+            f"connect-src 'self' data: blob:{sockets}; worker-src 'self' blob: data:; object-src 'none'; "
+            "base-uri 'none'; form-action 'none'; frame-ancestors 'self'")
+
+
+def same_origin(origin: str | None, host: str | None, public_url: str | None = None) -> bool:
+    """Whether a websocket's Origin header names this server (by its Host header or its public URL).
+
+    Browsers always send Origin; a client without one (not a browser) is let through, a foreign one is not."""
+    if origin is None:
+        return True
+    from urllib.parse import urlsplit
+
+    netloc = urlsplit(origin).netloc.lower()
+    if not netloc:
+        return False  # "null" (sandboxed frames, file://) or garbage
+    allowed = {(host or "").lower()}
+    if public_url:
+        allowed.add(urlsplit(public_url).netloc.lower())
+    return netloc in allowed
 
 
 @router.websocket("/p/{token}/viewer")
 async def viewer_socket(websocket: WebSocket, token: str) -> None:
     """Proxy the browser's websocket to the participant's viser server (started on first use)."""
     ctx = websocket.app.state.context
+    if not same_origin(websocket.headers.get("origin"), websocket.headers.get("host"), ctx.settings.public_url):
+        log.warning("viewer websocket refused: Origin %r is not this server", websocket.headers.get("origin"))
+        await websocket.close(code=CLOSE_POLICY, reason="this view can be opened only from the study's own page")
+        return
     try:
         port = await run_in_threadpool(services.open_viewer, ctx, token)
     except NotAuthenticated:

@@ -184,3 +184,78 @@ def test_the_server_refuses_huge_bodies_unread_and_huge_headers(server_factory) 
     assert b"request headers too large" in answer
     ok = _raw_request(server.port, b"GET /healthz HTTP/1.1\r\nHost: x\r\nConnection: close\r\n\r\n")
     assert ok.startswith(b"HTTP/1.1 200"), ok[:200]
+
+
+# -- item 9: viewer CSP and websocket Origin --------------------------------------------------------------------
+
+
+def test_the_viewer_page_can_be_framed_only_by_this_origin(app_client) -> None:
+    from .helpers import make_study
+
+    study = make_study(app_client)
+    token = app_client.post(f"/api/v1/studies/{study}/join", json={}).json()["token"]
+    viewer = app_client.get(f"/p/{token}/viewer/")
+    assert viewer.status_code == 200
+    policy = dict(part.strip().split(" ", 1) for part in viewer.headers["content-security-policy"].split(";"))
+    assert policy["frame-ancestors"] == "'self'" and policy["object-src"] == "'none'"
+    assert "http" not in policy["connect-src"].replace("https", "") and "ws://testserver" in policy["connect-src"]
+    assert "*" not in viewer.headers["content-security-policy"]
+
+
+def test_the_viewer_socket_refuses_a_foreign_origin(app_client) -> None:
+    import pytest
+    from starlette.websockets import WebSocketDisconnect
+
+    from .helpers import make_study
+
+    study = make_study(app_client)
+    token = app_client.post(f"/api/v1/studies/{study}/join", json={}).json()["token"]
+    for origin in ("https://evil.example", "null", "http://testserver.evil.example"):
+        with pytest.raises(WebSocketDisconnect) as refused:
+            with app_client.websocket_connect(f"/p/{token}/viewer", headers={"Origin": origin}):
+                pass
+        assert refused.value.code == 1008 and "own page" in refused.value.reason, origin
+    # Same origin gets past the check (and is then told there is no view at the consent stage).
+    with pytest.raises(WebSocketDisconnect) as later:
+        with app_client.websocket_connect(f"/p/{token}/viewer", headers={"Origin": "http://testserver"}):
+            pass
+    assert "no 3D view" in later.value.reason
+
+
+def test_same_origin_accepts_the_host_or_the_public_url() -> None:
+    from tableteach.web.viewer import same_origin
+
+    assert same_origin("http://127.0.0.1:8000", "127.0.0.1:8000")
+    assert same_origin("https://study.example.org", "10.0.0.5:8000", "https://study.example.org")
+    assert same_origin(None, "127.0.0.1:8000")
+    assert not same_origin("http://127.0.0.1:8001", "127.0.0.1:8000")
+    assert not same_origin("null", "127.0.0.1:8000")
+
+
+def test_csv_cells_with_leading_space_line_feed_or_full_width_signs_are_neutralised() -> None:
+    from tableteach.web.exports import cell
+
+    for value in (" =HYPERLINK(1)", "\n=1+1", "\uff1dSUM(A1)", "\u3000+1", "\uff20A1", "\uff0b1", "\uff0d1"):
+        assert cell(value) == "'" + value, repr(value)
+    assert cell("F(bowl) & G(!knife)") == "F(bowl) & G(!knife)"
+
+
+def test_docs_pages_that_load_a_cdn_are_off_outside_dev_mode(app_client, tmp_path: Path) -> None:
+    from starlette.testclient import TestClient
+
+    from tableteach.config import Settings
+    from tableteach.web.app import create_app
+
+    assert app_client.get("/docs").status_code == 404 and app_client.get("/redoc").status_code == 404
+    assert app_client.get("/openapi.json").status_code == 200
+    dev = create_app(Settings(database_url=f"sqlite:///{tmp_path / 'dev.db'}", dev_mode=True, data_dir=tmp_path))
+    with TestClient(dev) as client:
+        assert client.get("/docs").status_code == 200
+
+
+def test_dot_env_files_are_ignored_by_git() -> None:
+    import subprocess
+
+    for name in (".env", "deploy/.env", ".env.local"):
+        ignored = subprocess.run(["git", "check-ignore", "-q", "--no-index", name], cwd=REPO)
+        assert ignored.returncode == 0, f"{name} is not ignored by .gitignore"
