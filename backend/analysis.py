@@ -318,7 +318,8 @@ def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int,
 
     with ctx.db.read() as s:
         study_row(s, study_id)
-        pid = study_participant(s, study_id, participant_id).id
+        participant = study_participant(s, study_id, participant_id)
+        pid, uid = participant.id, participant.uid
         executions = _executions(aq.participant_events(s, participant_id=pid))
     found = [x for x in executions if (x["task_index"], x["kind"], x["index"]) == (task_index, step_kind, step_index)]
     if not found:
@@ -330,7 +331,7 @@ def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int,
     layout = table_layout()
     recording = None
     try:
-        saved = load_recording(ctx.settings.data_dir, RecordingId(pid, task_index, step_kind, step_index))
+        saved = load_recording(ctx.settings.data_dir, RecordingId(uid, task_index, step_kind, step_index))
         recording = _recording_view(saved, tuple(layout["objects"]))
     except FileNotFoundError:
         pass  # the trace robot saves none: the dashboard replays the trace instead

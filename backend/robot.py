@@ -60,7 +60,7 @@ class Robot(Protocol):
     def save_recording(self, key: str, name: str) -> None:
         """Keep the table's motion since its last reset as `name`, if it records any.
 
-        `name` has the form participant-<id>/task-<i>/<kind>-<j>.
+        `name` has the form participant-<uid>/task-<i>/<kind>-<j> (the participant's random uid).
         """
         ...
 

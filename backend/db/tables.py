@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import secrets
 from datetime import datetime, timezone
 from typing import Any
 
@@ -16,6 +17,11 @@ NAMING = {
     "fk": "fk_%(table_name)s_%(column_0_name)s_%(referred_table_name)s",
     "pk": "pk_%(table_name)s",
 }
+
+
+def new_uid() -> str:
+    """A participant's uid: 128 random bits as hex, unique across databases (it names their recordings)."""
+    return secrets.token_hex(16)
 
 
 def utcnow() -> datetime:
@@ -56,13 +62,17 @@ class StudyRow(Base):
 
 
 class ParticipantRow(Base):
-    """A participant: secret token, external ids, consent, condition, stage and completion."""
+    """A participant: secret token, uid, external ids, consent, condition, stage and completion."""
 
     __tablename__ = "participants"
     __table_args__ = (UniqueConstraint("study_id", "prolific_pid", name="uq_participants_study_external"),)
 
     id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     token: Mapped[str] = mapped_column(String(64), unique=True, index=True)
+    uid: Mapped[str] = mapped_column(String(32), unique=True, default=new_uid)
+    # SHA-256 of the secret in the HttpOnly cookie of the browser that joined: resuming by external id needs it
+    # (or the same external session id).
+    browser_digest: Mapped[str | None] = mapped_column(String(64), nullable=True)
     study_id: Mapped[str] = mapped_column(ForeignKey("studies.id", ondelete="CASCADE"), index=True)
     prolific_pid: Mapped[str | None] = mapped_column(String(128), nullable=True)
     external_study_id: Mapped[str | None] = mapped_column(String(128), nullable=True)

@@ -20,7 +20,7 @@ from .exports import (
 )
 from .monitoring import belief_summary, list_participants
 from .participants import answer_questionnaire, finish_instructions, give_consent, join_study
-from .state import STAGES, Expect, participant_state
+from .state import STAGES, Expect, delete_recordings, participant_state
 from .studies import (
     ASSIGNMENTS,
     DEFAULT_CONSENT,
@@ -72,6 +72,7 @@ __all__ = [
     "claim_tab",
     "close_study",
     "create_study",
+    "delete_recordings",
     "export_rows",
     "finish_demonstration",
     "finish_instructions",

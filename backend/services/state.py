@@ -14,6 +14,7 @@ from ..core.domain import DINNER_OBJECTS, get_domain
 from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
+from ..sim import recordings
 from ..sim.recordings import RecordingId
 from .context import Context, app_version, commit, iso
 from .planning import ROBOT_TURNS, position_of, session_of
@@ -32,10 +33,17 @@ def save_recording(ctx: Context, participant: ParticipantRow, task_index: int, k
     """Ask the robot to keep this step's motion; a failure is logged, never shown to the participant."""
     try:
         ctx.robot.save_recording(robot_key(participant, task_index),
-                                 RecordingId(participant.id, task_index, kind, index).name)
+                                 RecordingId(participant.uid, task_index, kind, index).name)
     except Exception:
         log.exception("could not save the recording of participant %s task %s %s %s", participant.id, task_index,
                       kind, index)
+
+
+def delete_recordings(ctx: Context, participant: ParticipantRow) -> int:
+    """Delete every robot recording of this participant (for erasure); the number of files removed.
+
+    Call it before the participant's row is deleted (it needs participant.uid)."""
+    return recordings.delete_recordings(ctx.settings.data_dir, participant.uid)
 
 
 def session_config(study: StudyRow, participant: ParticipantRow, task_index: int) -> core.SessionConfig:

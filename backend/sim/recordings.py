@@ -1,10 +1,15 @@
 """Where the study server keeps the robot's recorded motions: one .npz (poses) plus one .json (what
-happened) per step, under <data_dir>/recordings/participant-<id>/task-<i>/<kind>-<j>.*; numpy only."""
+happened) per step, under <data_dir>/recordings/participant-<uid>/task-<i>/<kind>-<j>.*; numpy only.
+
+<uid> is the participant's random 128-bit uid (participants.uid), not their number: a new database or a
+second server on the same folder can never show one person's motion as another's. delete_recordings
+removes all of a participant's files (for erasure)."""
 
 from __future__ import annotations
 
 import json
 import re
+import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,37 +17,47 @@ from .recording import Recording
 
 FOLDER = "recordings"
 STEP_KINDS = ("practice", "demonstration", "query", "test")
-_NAME = re.compile(r"^participant-(\d+)/task-(\d+)/(practice|demonstration|query|test)-(\d+)$")
+_UID = re.compile(r"^[0-9a-f]{32}$")
+_NAME = re.compile(r"^participant-([0-9a-f]{32})/task-(\d+)/(practice|demonstration|query|test)-(\d+)$")
 
 
 @dataclass(frozen=True, order=True)
 class RecordingId:
     """Which step of which participant a recording shows (indices count from 0, as in the API)."""
 
-    participant_id: int
+    participant_uid: str
     task_index: int
     step_kind: str
     step_index: int
 
     def __post_init__(self) -> None:
+        check_uid(self.participant_uid)
         if self.step_kind not in STEP_KINDS:
             raise ValueError(f"step_kind is {self.step_kind!r}: expected one of {', '.join(STEP_KINDS)}")
-        if min(self.participant_id, self.task_index, self.step_index) < 0:
-            raise ValueError(f"{self} has a negative id or index: expected whole numbers >= 0")
+        if min(self.task_index, self.step_index) < 0:
+            raise ValueError(f"{self} has a negative index: expected whole numbers >= 0")
 
     @property
     def name(self) -> str:
-        """The relative path without suffix, e.g. participant-3/task-0/query-1."""
-        return f"participant-{self.participant_id}/task-{self.task_index}/{self.step_kind}-{self.step_index}"
+        """The relative path without suffix, e.g. participant-<uid>/task-0/query-1."""
+        return f"participant-{self.participant_uid}/task-{self.task_index}/{self.step_kind}-{self.step_index}"
 
     @classmethod
     def parse(cls, name: str) -> RecordingId:
         """The id a name() string stands for."""
         match = _NAME.match(name)
         if match is None:
-            raise ValueError(f"recording name {name!r}: expected participant-<id>/task-<i>/<kind>-<j>")
-        pid, task, kind, index = match.groups()
-        return cls(int(pid), int(task), kind, int(index))
+            raise ValueError(f"recording name {name!r}: expected participant-<uid>/task-<i>/<kind>-<j> "
+                             "with a 32-hex-digit uid")
+        uid, task, kind, index = match.groups()
+        return cls(uid, int(task), kind, int(index))
+
+
+def check_uid(uid: str) -> str:
+    """The uid itself if it is 32 lowercase hex digits (so it is safe as a folder name), else ValueError."""
+    if not isinstance(uid, str) or not _UID.match(uid):
+        raise ValueError(f"participant uid {uid!r}: expected 32 lowercase hex digits")
+    return uid
 
 
 @dataclass(frozen=True)
@@ -67,7 +82,7 @@ def save_recording(data_dir: Path | str, saved: SavedRecording) -> Path:
     npz.parent.mkdir(parents=True, exist_ok=True)
     saved.recording.save(npz)
     meta.write_text(json.dumps({
-        "participant_id": saved.id.participant_id, "task_index": saved.id.task_index,
+        "participant_uid": saved.id.participant_uid, "task_index": saved.id.task_index,
         "step_kind": saved.id.step_kind, "step_index": saved.id.step_index,
         "events": list(saved.events), "trace": [sorted(labels) for labels in saved.trace],
         "action_ends": list(saved.action_ends), "duration": saved.recording.duration,
@@ -75,10 +90,10 @@ def save_recording(data_dir: Path | str, saved: SavedRecording) -> Path:
     return npz
 
 
-def list_recordings(data_dir: Path | str, participant_id: int | None = None) -> list[RecordingId]:
+def list_recordings(data_dir: Path | str, participant_uid: str | None = None) -> list[RecordingId]:
     """Every saved step (of one participant if given), sorted by participant, task, kind and index."""
     root = Path(data_dir) / FOLDER
-    pattern = (f"participant-{participant_id}/task-*/*.npz" if participant_id is not None
+    pattern = (f"participant-{check_uid(participant_uid)}/task-*/*.npz" if participant_uid is not None
                else "participant-*/task-*/*.npz")
     out = []
     for path in root.glob(pattern):
@@ -86,7 +101,7 @@ def list_recordings(data_dir: Path | str, participant_id: int | None = None) -> 
             out.append(RecordingId.parse(path.relative_to(root).with_suffix("").as_posix()))
         except ValueError:
             continue  # a stray file someone put there
-    return sorted(out, key=lambda r: (r.participant_id, r.task_index, STEP_KINDS.index(r.step_kind), r.step_index))
+    return sorted(out, key=lambda r: (r.participant_uid, r.task_index, STEP_KINDS.index(r.step_kind), r.step_index))
 
 
 def load_recording(data_dir: Path | str, rid: RecordingId) -> SavedRecording:
@@ -100,3 +115,13 @@ def load_recording(data_dir: Path | str, rid: RecordingId) -> SavedRecording:
         rid, Recording.load(npz), tuple(info["events"]), tuple(frozenset(x) for x in info["trace"]),
         tuple(float(t) for t in info["action_ends"]),
     )
+
+
+def delete_recordings(data_dir: Path | str, participant_uid: str) -> int:
+    """Remove every recording of one participant (their whole folder); the number of files removed."""
+    folder = Path(data_dir) / FOLDER / f"participant-{check_uid(participant_uid)}"
+    if not folder.exists():
+        return 0
+    removed = sum(1 for path in folder.rglob("*") if path.is_file())
+    shutil.rmtree(folder)
+    return removed

@@ -15,6 +15,7 @@ import pytest
 from tableteach.client import ExperimenterClient
 from tableteach.sim.recordings import list_recordings, load_recording
 from tests.web.conftest import EXPERIMENTER_TOKEN, open_study, study_spec
+from tests.web.helpers import participant_uid
 
 from scene_clicks import project, wait_for_camera
 
@@ -147,7 +148,7 @@ def test_a_participant_completes_an_active_session_by_clicking_in_the_3d_view(br
     assert last["trace"] == '[[],["dinner_plate"],["dinner_plate","small_plate"]]'
 
     pid = int(events[0]["participant_id"])
-    saved = list_recordings(server.settings.data_dir, pid)
+    saved = list_recordings(server.settings.data_dir, participant_uid(server.ctx, pid))
     assert [(r.step_kind, r.step_index) for r in saved] == [("demonstration", 0), ("demonstration", 1), ("query", 0),
                                                            ("test", 0)]
     query = load_recording(server.settings.data_dir, saved[2])

@@ -48,3 +48,11 @@ def demonstrate(client: Any, token: str, objects: list[str]) -> dict[str, Any]:
     response = client.post("/api/v1/me/demonstration/finish", headers=bearer(token))
     assert response.status_code == 200, response.text
     return response.json()
+
+
+def participant_uid(ctx: Any, participant_id: int) -> str:
+    """The random uid of a participant (it names their robot recordings)."""
+    from tableteach.db.tables import ParticipantRow
+
+    with ctx.db.read() as s:
+        return s.get(ParticipantRow, participant_id).uid

@@ -15,7 +15,7 @@ from tableteach.core.domain import get_domain
 from tableteach.core.hypotheses import get_space
 from tableteach.services import TASK_FORMULAS
 
-from .helpers import EXP, bearer, demonstrate, make_study, to_teaching
+from .helpers import EXP, bearer, demonstrate, make_study, participant_uid, to_teaching
 
 SPACE = get_domain("dinner").clause_space
 ALL = ["dinner_plate", "small_plate", "bowl", "knife", "fork"]
@@ -228,8 +228,9 @@ def test_replay_of_a_saved_recording_sends_the_objects_and_the_hand_at_15_fps(ap
     poses[:, 0, 0] = np.linspace(0.43, 0.45, 61)  # the dinner plate travels
     poses[:, 1, 1] = np.linspace(0.3, -0.3, 61)  # the hand
     recording = Recording(("dinner_plate", "hand", "upper_arm"), times, poses)
-    saved = SavedRecording(RecordingId(pid, 0, "query", 0), recording, tuple(done[3]["objects"]),
-                           tuple(frozenset(s) for s in done[3]["trace"]), (1.0, 2.0))
+    rid = RecordingId(participant_uid(app_client.ctx, pid), 0, "query", 0)
+    saved = SavedRecording(rid, recording, tuple(done[3]["objects"]), tuple(frozenset(s) for s in done[3]["trace"]),
+                           (1.0, 2.0))
     save_recording(app_client.ctx.settings.data_dir, saved)
     data = app_client.get(f"/api/v1/studies/{study_id}/participants/{pid}/replays/0/query/0", headers=EXP).json()
     assert data["source"] == "recording" and data["trace"] == done[3]["trace"]

@@ -259,3 +259,118 @@ def test_dot_env_files_are_ignored_by_git() -> None:
     for name in (".env", "deploy/.env", ".env.local"):
         ignored = subprocess.run(["git", "check-ignore", "-q", "--no-index", name], cwd=REPO)
         assert ignored.returncode == 0, f"{name} is not ignored by .gitignore"
+
+
+# -- item 7: recordings keyed by the participant's uid ----------------------------------------------------------
+
+
+def _app(tmp_path: Path, name: str, data_dir: Path, robot: Any = None) -> Any:
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # Starlette deprecates httpx inside TestClient; it still works
+        from starlette.testclient import TestClient
+
+    from tableteach.config import Settings
+    from tableteach.db.migrate import upgrade_head
+    from tableteach.services import Context
+    from tableteach.web.app import create_app
+
+    from .conftest import EXPERIMENTER_TOKEN
+
+    settings = Settings(database_url=f"sqlite:///{tmp_path / name}", experimenter_token=EXPERIMENTER_TOKEN,
+                        data_dir=data_dir)
+    upgrade_head(settings.database_url)
+    app = create_app(settings, context=Context.from_settings(settings, robot))
+    client = TestClient(app)
+    client.ctx = app.state.context
+    return client
+
+
+def test_a_second_database_on_the_same_data_dir_never_shows_anothers_recording(tmp_path: Path) -> None:
+    import numpy as np
+
+    from tableteach.robot import TraceRobot
+    from tableteach.sim.recording import Recording
+    from tableteach.sim.recordings import SavedRecording, list_recordings, save_recording
+
+    from .helpers import EXP, make_study, participant_uid
+    from .test_analysis import participant_id, teach
+
+    class SavingTraceRobot(TraceRobot):
+        """The trace robot, saving a tiny recording whenever the server asks (as the MuJoCo robot does)."""
+
+        def save_recording(self, key: str, name: str) -> None:
+            from tableteach.sim.recordings import RecordingId
+
+            poses = np.zeros((2, 1, 7))
+            poses[:, :, 3] = 1.0
+            save_recording(data_dir, SavedRecording(RecordingId.parse(name), Recording(("bowl",), np.array([0., 1.]),
+                                                                                       poses), (), (frozenset(),), ()))
+
+    data_dir = tmp_path / "shared-data"
+    with _app(tmp_path, "a.db", data_dir, SavingTraceRobot()) as first, _app(tmp_path, "b.db", data_dir) as second:
+        study_a = make_study(first)
+        token_a, _ = teach(first, study_a, [True])
+        pid_a = participant_id(first, token_a)
+        uid_a = participant_uid(first.ctx, pid_a)
+        assert {r.participant_uid for r in list_recordings(data_dir)} == {uid_a}  # named by uid, not by number
+        url = f"/api/v1/studies/{study_a}/participants/{pid_a}/replays/0/query/0"
+        assert first.get(url, headers=EXP).json()["source"] == "recording"
+
+        study_b = make_study(second)
+        token_b, _ = teach(second, study_b, [True])
+        pid_b = participant_id(second, token_b)
+        assert pid_b == pid_a  # the same number in another database ...
+        replay = second.get(f"/api/v1/studies/{study_b}/participants/{pid_b}/replays/0/query/0", headers=EXP).json()
+        assert replay["source"] == "trace"  # ... never shows the first participant's motion
+
+
+def test_delete_recordings_removes_one_participants_files_only(app_client, tmp_path: Path) -> None:
+    import numpy as np
+
+    from tableteach.db.tables import ParticipantRow, new_uid
+    from tableteach.services import delete_recordings
+    from tableteach.sim.recording import Recording
+    from tableteach.sim.recordings import RecordingId, SavedRecording, list_recordings, save_recording
+
+    data_dir = app_client.ctx.settings.data_dir
+    keep, gone = new_uid(), new_uid()
+    poses = np.zeros((2, 1, 7))
+    poses[:, :, 3] = 1.0
+    for uid in (keep, gone):
+        for kind, index in (("query", 0), ("test", 1)):
+            save_recording(data_dir, SavedRecording(RecordingId(uid, 0, kind, index),
+                                                    Recording(("bowl",), np.array([0.0, 1.0]), poses), (), (), ()))
+    assert delete_recordings(app_client.ctx, ParticipantRow(uid=gone)) == 4  # two steps, .npz and .json each
+    assert {r.participant_uid for r in list_recordings(data_dir)} == {keep}
+    assert delete_recordings(app_client.ctx, ParticipantRow(uid=gone)) == 0
+    import pytest
+
+    with pytest.raises(ValueError, match="32 lowercase hex digits"):
+        RecordingId("../../etc", 0, "query", 0)
+
+
+def test_the_migration_gives_existing_participants_distinct_uids(tmp_path: Path) -> None:
+    import sqlalchemy as sa
+    from alembic import command
+    from alembic.config import Config
+
+    url = f"sqlite:///{tmp_path / 'old.db'}"
+    config = Config(str(REPO / "alembic.ini"))
+    config.set_main_option("script_location", str(REPO / "alembic"))
+    config.attributes["database_url"] = url
+    command.upgrade(config, "0001")
+    engine = sa.create_engine(url)
+    with engine.begin() as conn:
+        conn.execute(sa.text("INSERT INTO studies VALUES ('s', 'n', '[]', '[]', 'random', 0, 0, 0, 0, 'p', 'c', '[]', "
+                             "'t', 'v', NULL, 'open', 0, '2026-01-01', '2026-01-01')"))
+        for i in (1, 2, 3):
+            conn.execute(sa.text("INSERT INTO participants (id, token, study_id, condition, seed, pilot, stage, "
+                                 "task_index, created_at, last_activity_at, n_events, version) VALUES "
+                                 f"({i}, 't{i}', 's', 'active', 1, 0, 'consent', 0, '2026-01-01', '2026-01-01', 0, 1)"))
+    command.upgrade(config, "head")
+    with engine.begin() as conn:
+        uids = [row[0] for row in conn.execute(sa.text("SELECT uid FROM participants"))]
+    engine.dispose()
+    assert len(set(uids)) == 3 and all(len(u) == 32 and int(u, 16) >= 0 for u in uids)

@@ -17,7 +17,7 @@ from tableteach.services import TabLeases
 from tableteach.sim.recordings import list_recordings, load_recording
 
 from .conftest import EXPERIMENTER_TOKEN
-from .helpers import bearer, demonstrate, make_study, to_teaching
+from .helpers import bearer, demonstrate, make_study, participant_uid, to_teaching
 
 
 @pytest.fixture
@@ -127,7 +127,7 @@ def test_a_rest_session_with_the_mujoco_robot_records_every_step(mujoco_client):
         assert len(trace) == len(events) + 1 and set(trace[-1]) == set(events)  # MuJoCo set each one in its slot
         assert mujoco_client.post("/api/v1/me/assessment", json={"acceptable": True}, headers=h).status_code == 200
     data_dir = mujoco_client.ctx.settings.data_dir
-    saved = list_recordings(data_dir, state["participant_id"])
+    saved = list_recordings(data_dir, participant_uid(mujoco_client.ctx, state["participant_id"]))
     assert [(r.step_kind, r.step_index) for r in saved] == [("demonstration", 0), ("query", 0), ("test", 0)]
     demo = load_recording(data_dir, saved[0])
     assert demo.events == ("dinner_plate", "bowl")
