@@ -79,9 +79,9 @@ class _Base:
 class ParticipantClient(_Base):
     """The participant API (the token comes from join())."""
 
-    def join(self, study_id: str, *, prolific_pid: str | None = None) -> dict[str, Any]:
-        """Join a study; remembers the token."""
-        body = {"prolific_pid": prolific_pid} if prolific_pid else {}
+    def join(self, study_id: str, *, prolific_pid: str | None = None, session_id: str | None = None) -> dict[str, Any]:
+        """Join a study; remembers the token. Rejoining with a prolific_pid needs the same session_id (or client)."""
+        body = {k: v for k, v in (("prolific_pid", prolific_pid), ("session_id", session_id)) if v}
         out = self._request("POST", f"/api/v1/studies/{study_id}/join", json=body).json()
         self.token = out["token"]
         return out
@@ -204,7 +204,8 @@ def _answers(items: list[dict[str, Any]], rng: np.random.Generator) -> dict[str,
 
 
 def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: float = 0.0, seed: int = 0,
-                prolific_pid: str | None = None, poll_seconds: float = 0.02, timeout: float = 300.0,
+                prolific_pid: str | None = None, session_id: str | None = None, poll_seconds: float = 0.02,
+                timeout: float = 300.0,
                 on_request: Callable[[str, float, int], None] | None = None,
                 client: ParticipantClient | None = None, stop_after: int | None = None) -> TeacherRun:
     """Complete a participant session as the simulated teacher (one ground truth per task, or one for all).
@@ -224,7 +225,7 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
     api = client or ParticipantClient(server, on_request=count)
     api.on_request = count
     deadline = time.monotonic() + timeout
-    state = api.state() if api.token else api.join(study_id, prolific_pid=prolific_pid)["state"]
+    state = api.state() if api.token else api.join(study_id, prolific_pid=prolific_pid, session_id=session_id)["state"]
     run.participant_id, run.token = state["participant_id"], api.token
     while state["stage"] not in ("done", "withdrawn"):
         if time.monotonic() > deadline:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import hashlib
+import hmac
 import secrets
 from datetime import timedelta
 from typing import Any
@@ -27,11 +29,32 @@ def _choose_condition(s: Any, study: StudyRow, settings: Settings) -> str:
     return rng.choice([c for c in study.conditions if counts.get(c, 0) == fewest])
 
 
+RESUME_REFUSED = ("This participant id has already started this study. To continue, open the study link again "
+                  "in the same browser, or from the same Prolific session.")
+
+
+def browser_digest(secret: str) -> str:
+    """What is stored of a browser's secret (the HttpOnly cookie set at join): its SHA-256."""
+    return hashlib.sha256(secret.encode()).hexdigest()
+
+
+def _may_resume(existing: Any, session_id: str | None, browser_secret: str | None) -> bool:
+    """Whether this request proves to be the participant who joined: the same external session or browser."""
+    if session_id and existing.external_session_id and hmac.compare_digest(session_id, existing.external_session_id):
+        return True
+    return bool(browser_secret and existing.browser_digest
+                and hmac.compare_digest(browser_digest(browser_secret), existing.browser_digest))
+
+
 def join_study(
     ctx: Context, study_id: str, *, prolific_pid: str | None = None, external_study_id: str | None = None,
-    external_session_id: str | None = None,
+    external_session_id: str | None = None, browser_secret: str | None = None,
 ) -> tuple[dict[str, Any], bool]:
-    """A new participant (or the one who joined before with this external id) and whether it is new."""
+    """A new participant, or the one who joined before with this external id, and whether it is new.
+
+    An external id alone is not enough to resume (ids are shown on the dashboard and exported): the request
+    must carry the external session id the participant first came with, or come from the same browser
+    (browser_secret, from the cookie set at join). Otherwise Conflict, which says nothing about that participant."""
     with ctx.db.write() as s:
         study = repo.get_study(s, study_id=study_id, for_update=True)
         if study is None:
@@ -39,6 +62,8 @@ def join_study(
         if prolific_pid:
             existing = repo.find_participant_by_external_id(s, study_id=study_id, prolific_pid=prolific_pid)
             if existing is not None:
+                if not _may_resume(existing, external_session_id, browser_secret):
+                    raise Conflict(RESUME_REFUSED)
                 return state_view(s, existing, study), False
         if study.status != "open":
             raise Conflict(f"study {study_id!r} is {study.status}; participants can join only while it is open")
@@ -48,6 +73,7 @@ def join_study(
             "prolific_pid": prolific_pid or None,
             "external_study_id": external_study_id or None,
             "external_session_id": external_session_id or None,
+            "browser_digest": browser_digest(browser_secret) if browser_secret else None,
             "condition": _choose_condition(s, study, ctx.settings),
             "seed": secrets.randbelow(2**31 - 1000),
             "pilot": study.pilot,

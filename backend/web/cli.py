@@ -74,7 +74,7 @@ def cmd_teach(args: argparse.Namespace) -> dict:
         raise ValueError(f"--noise must be a probability in [0, 1], got {args.noise}")
     try:
         run = run_teacher(args.server, args.study, args.ground_truth, noise=args.noise, seed=args.seed,
-                          prolific_pid=args.prolific_pid)
+                          prolific_pid=args.prolific_pid, session_id=args.session_id)
     except ApiError as exc:
         raise ValueError(f"the server refused a request: {exc}") from exc
     except httpx.HTTPError as exc:
@@ -143,7 +143,9 @@ def register(sub: argparse._SubParsersAction) -> None:
                        help="the teacher's formula, or task1 / task2; repeat once per task of the study")
     teach.add_argument("--noise", type=float, default=0.0, help="probability of a flipped verdict (default 0)")
     teach.add_argument("--seed", type=int, default=0, help="the teacher's random seed")
-    teach.add_argument("--prolific-pid", help="external participant id (a rerun with it resumes the same session)")
+    teach.add_argument("--prolific-pid", help="external participant id")
+    teach.add_argument("--session-id", help="external session id (a rerun with the same --prolific-pid and "
+                                            "--session-id resumes the same session)")
     teach.set_defaults(run=cmd_teach)
 
     export = sub.add_parser("export", help="download a study's CSV exports")

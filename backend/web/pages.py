@@ -4,11 +4,12 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Query
+from fastapi import APIRouter, Query, Request
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
 
 from .. import services
 from ..errors import NotAuthenticated
+from .browser import browser_secret, remember_browser
 from .deps import ContextDep
 from .frontend_files import FRONTEND, allowed_file
 from .schemas import error_responses
@@ -38,12 +39,17 @@ PAGE = """<!doctype html><html lang="en"><head><meta charset="utf-8"><title>{tit
 
 @router.get("/study/{study_id}/join", response_class=RedirectResponse, status_code=303,
             responses={303: {"description": "to the participant's page /p/{token}"}, **error_responses(404, 409)})
-def join_link(study_id: str, ctx: ContextDep, PROLIFIC_PID: ExternalId = None, STUDY_ID: ExternalId = None,  # noqa: N803
-              SESSION_ID: ExternalId = None) -> RedirectResponse:  # noqa: N803
-    """The link given to participants: creates (or finds, by PROLIFIC_PID) the participant and redirects."""
+def join_link(study_id: str, ctx: ContextDep, request: Request, PROLIFIC_PID: ExternalId = None,  # noqa: N803
+              STUDY_ID: ExternalId = None, SESSION_ID: ExternalId = None) -> RedirectResponse:  # noqa: N803
+    """The link given to participants: creates the participant (or finds, by PROLIFIC_PID with the same
+    SESSION_ID or browser, the one who joined before) and redirects to their page."""
+    secret = browser_secret(request)
     state, _created = services.join_study(ctx, study_id, prolific_pid=PROLIFIC_PID or None,
-                                          external_study_id=STUDY_ID or None, external_session_id=SESSION_ID or None)
-    return RedirectResponse(f"/p/{state['token']}", status_code=303)
+                                          external_study_id=STUDY_ID or None, external_session_id=SESSION_ID or None,
+                                          browser_secret=secret)
+    response = RedirectResponse(f"/p/{state['token']}", status_code=303)
+    remember_browser(request, response, secret)
+    return response
 
 
 @router.get("/p/{token}", response_class=FileResponse,

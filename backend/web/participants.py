@@ -4,10 +4,11 @@ from __future__ import annotations
 
 from typing import Annotated
 
-from fastapi import APIRouter, Body, Response, status
+from fastapi import APIRouter, Body, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from .. import services
+from .browser import browser_secret, remember_browser
 from .deps import ContextDep, IdempotencyKey, TokenDep
 from .schemas import (AssessmentIn, ConsentIn, JoinIn, JoinOut, ParticipantState, PlacementIn,
                       QuestionnaireIn, StepGuard, error_responses)
@@ -28,12 +29,16 @@ def _expect(guard: StepGuard | None) -> services.Expect:
 @router.post("/studies/{study_id}/join", response_model=JoinOut, status_code=status.HTTP_201_CREATED,
              responses={200: {"model": JoinOut, "description": "this external id joined before: the same participant"},
                         **error_responses(404)})
-async def join(study_id: str, ctx: ContextDep, response: Response, body: JoinIn | None = None) -> dict:
-    """Join an open study; with a prolific_pid seen before, the same participant is returned (200)."""
+async def join(study_id: str, ctx: ContextDep, request: Request, response: Response,
+               body: JoinIn | None = None) -> dict:
+    """Join an open study. A prolific_pid seen before returns the same participant (200) only with the same
+    session_id or from the same browser (its cookie); otherwise 409."""
     body = body or JoinIn()
+    secret = browser_secret(request)
     state, created = await run_in_threadpool(
         services.join_study, ctx, study_id, prolific_pid=body.prolific_pid, external_study_id=body.study_id,
-        external_session_id=body.session_id)
+        external_session_id=body.session_id, browser_secret=secret)
+    remember_browser(request, response, secret)
     if not created:
         response.status_code = status.HTTP_200_OK
     return {"participant_id": state["participant_id"], "token": state["token"], "created": created, "state": state}

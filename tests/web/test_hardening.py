@@ -374,3 +374,51 @@ def test_the_migration_gives_existing_participants_distinct_uids(tmp_path: Path)
         uids = [row[0] for row in conn.execute(sa.text("SELECT uid FROM participants"))]
     engine.dispose()
     assert len(set(uids)) == 3 and all(len(u) == 32 and int(u, 16) >= 0 for u in uids)
+
+
+# -- item 1: resuming needs the same session or browser ---------------------------------------------------------
+
+
+def test_a_prolific_pid_alone_does_not_take_over_a_session(app_client) -> None:
+    from .helpers import EXP, make_study
+
+    study = make_study(app_client)
+    first = app_client.post(f"/api/v1/studies/{study}/join", json={"prolific_pid": "B1", "session_id": "S1"})
+    assert first.status_code == 201
+    cookie = first.headers["set-cookie"].lower()
+    assert "httponly" in cookie and "samesite=lax" in cookie and "path=/" in cookie
+    browser = dict(app_client.cookies)
+    token = first.json()["token"]
+
+    app_client.cookies.clear()  # someone else, who knows the PID from the dashboard or an export
+    for body in ({"prolific_pid": "B1"}, {"prolific_pid": "B1", "session_id": "S2"}):
+        stolen = app_client.post(f"/api/v1/studies/{study}/join", json=body)
+        assert stolen.status_code == 409, stolen.text
+        assert token not in stolen.text and stolen.json()["state"] is None
+        assert "same browser" in stolen.json()["detail"]
+        app_client.cookies.clear()
+    link = app_client.get(f"/study/{study}/join?PROLIFIC_PID=B1", follow_redirects=False)
+    assert link.status_code == 409 and token not in link.text
+    app_client.post(f"/api/v1/studies/{study}/close", headers=EXP)
+    app_client.cookies.clear()
+    closed = app_client.post(f"/api/v1/studies/{study}/join", json={"prolific_pid": "B1"})
+    assert closed.status_code == 409 and token not in closed.text
+
+    # The participant themself: the same Prolific session from another browser, or the same browser.
+    app_client.cookies.clear()
+    again = app_client.post(f"/api/v1/studies/{study}/join", json={"prolific_pid": "B1", "session_id": "S1"})
+    assert again.status_code == 200 and again.json()["token"] == token
+    app_client.cookies.clear()
+    app_client.cookies.update(browser)
+    link = app_client.get(f"/study/{study}/join?PROLIFIC_PID=B1", follow_redirects=False)
+    assert link.status_code == 303 and link.headers["location"] == f"/p/{token}"
+
+
+def test_a_browser_that_joined_by_link_can_come_back_without_the_session_id(app_client) -> None:
+    from .helpers import make_study
+
+    study = make_study(app_client)
+    first = app_client.get(f"/study/{study}/join?PROLIFIC_PID=P7&STUDY_ID=x", follow_redirects=False)
+    assert first.status_code == 303 and "tableteach_browser" in app_client.cookies
+    again = app_client.get(f"/study/{study}/join?PROLIFIC_PID=P7", follow_redirects=False)
+    assert again.status_code == 303 and again.headers["location"] == first.headers["location"]
