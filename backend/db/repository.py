@@ -12,6 +12,7 @@ from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
+from .engine import busy, is_busy
 from .tables import EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
 
 
@@ -22,15 +23,17 @@ class WriteConflict(Exception):
 _LOST_RACE = (IntegrityError, StaleDataError, OperationalError)
 
 
-def _lost_race(session: Session, exc: Exception) -> WriteConflict:
-    """Roll back (forgetting cached rows) and name the race that was lost."""
+def _lost_race(session: Session, exc: Exception) -> Exception:
+    """Roll back (forgetting cached rows) and name the race that was lost (or the busy database: TryLater)."""
     session.rollback()
     session.info.pop("task_sessions", None)
+    if is_busy(exc):
+        return busy(exc)
     return WriteConflict(str(exc).splitlines()[0])
 
 
 def commit(session: Session) -> None:
-    """Commit; a lost race (stale version, unique clash, busy database) becomes WriteConflict."""
+    """Commit; a lost race (stale version, unique clash) becomes WriteConflict, a busy database TryLater."""
     try:
         session.commit()
     except _LOST_RACE as exc:

@@ -71,7 +71,7 @@ class Context:
         """Open the database; the robot is the one given (the app composes it) or else the trace robot."""
         if robot is None:
             robot = TraceRobot("dinner", settings.robot_seconds_per_object)
-        return Context(Database(settings.database_url), robot, settings)
+        return Context(Database(settings.database_url, busy_seconds=settings.database_busy_seconds), robot, settings)
 
 
 def aware(value: datetime | None) -> datetime | None:

@@ -5,21 +5,34 @@ from __future__ import annotations
 from collections.abc import AsyncIterator
 from contextlib import asynccontextmanager
 
-from fastapi import FastAPI
+from typing import Any
+
+from fastapi import APIRouter, FastAPI
 
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
 from . import analysis, dashboard, viewer
 from .auth import FailureLimiter, experimenter_checker
+from .deps import require_experimenter
 from .limits import BodyLimit
 from .robots import make_robot
+from .schemas import error_responses
 
 DESCRIPTION = """Study server for teaching a robot to set a dinner table from demonstrations and verdicts.
 
 Participants authenticate with the token from their link (`Authorization: Bearer <token>`);
 experimenters with the server's experimenter token. Every participant action accepts an
 `Idempotency-Key` header: repeating a request with the same key changes nothing. See docs/server.md."""
+
+
+def _common_errors(router: APIRouter) -> dict[int | str, dict[str, Any]]:
+    """Answers any route of the router can give: 413 (body too large), 503 (database busy or gone) and, behind
+    the experimenter key, 429 (too many wrong keys)."""
+    codes = [413, 503]
+    if any(getattr(dep, "dependency", None) is require_experimenter for dep in router.dependencies):
+        codes.append(429)
+    return error_responses(*codes)
 
 
 def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI:
@@ -48,5 +61,5 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     errors.install(app)
     app.add_middleware(BodyLimit)
     for module in (participants, studies, exports, analysis, dashboard, viewer, pages):
-        app.include_router(module.router)
+        app.include_router(module.router, responses=_common_errors(module.router))
     return app

@@ -72,7 +72,8 @@ def participant_asset(name: str) -> FileResponse:
     return allowed_file(name, ASSETS, what="participant asset", headers={"Cache-Control": "no-cache"})
 
 
-@router.get("/healthz")
-def health() -> dict[str, str]:
-    """Liveness check."""
+@router.get("/healthz", responses=error_responses(503))
+def health(ctx: ContextDep) -> dict[str, str]:
+    """Health check: 200 while the database answers; 503 (with Retry-After) when it is busy, missing or replaced."""
+    ctx.db.health()
     return {"status": "ok", "version": services.app_version()}

@@ -173,7 +173,10 @@ ERROR_MEANINGS = {
     401: "missing or wrong token",
     404: "no such study, participant or export",
     409: "out of order, stale step, reused Idempotency-Key or study not open; includes the current state",
+    413: "request body over 1 MiB",
     422: "malformed request or unacceptable values",
+    429: "too many wrong experimenter tokens from this address; wait Retry-After seconds",
+    503: "the database is busy or unavailable; try again after Retry-After seconds (nothing was lost)",
 }
 
 

@@ -422,3 +422,80 @@ def test_a_browser_that_joined_by_link_can_come_back_without_the_session_id(app_
     assert first.status_code == 303 and "tableteach_browser" in app_client.cookies
     again = app_client.get(f"/study/{study}/join?PROLIFIC_PID=P7", follow_redirects=False)
     assert again.status_code == 303 and again.headers["location"] == first.headers["location"]
+
+
+# -- item 5: storage faults ---------------------------------------------------------------------------------------
+
+
+def _busy_app(tmp_path: Path) -> Any:
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from starlette.testclient import TestClient
+
+    from tableteach.config import Settings
+    from tableteach.db.migrate import upgrade_head
+    from tableteach.web.app import create_app
+
+    from .conftest import EXPERIMENTER_TOKEN
+
+    settings = Settings(database_url=f"sqlite:///{tmp_path / 'busy.db'}", experimenter_token=EXPERIMENTER_TOKEN,
+                        data_dir=tmp_path / "data", database_busy_seconds=0.3)
+    upgrade_head(settings.database_url)
+    client = TestClient(create_app(settings))
+    client.ctx = client.app.state.context
+    return client
+
+
+def test_a_database_locked_by_another_process_is_a_503_with_retry_after(tmp_path: Path, caplog) -> None:
+    import sqlite3
+
+    from .helpers import bearer, make_study
+
+    with _busy_app(tmp_path) as client:
+        study = make_study(client)
+        token = client.post(f"/api/v1/studies/{study}/join", json={}).json()["token"]
+        other = sqlite3.connect(tmp_path / "busy.db", isolation_level=None)
+        other.execute("BEGIN EXCLUSIVE")  # as a backup tool or a second server would
+        try:
+            answer = client.post("/api/v1/me/consent", json={"agree": True, "consent_version": "1"},
+                                 headers=bearer(token))
+            assert answer.status_code == 503, answer.text
+            assert answer.headers["Retry-After"] == "2" and "try again" in answer.json()["detail"]
+            assert "database busy" in caplog.text
+            # Writers of this process queue on its lock: they too get 503 after the timeout, not a hang.
+            client.ctx.db._write_lock.acquire()
+            try:
+                queued = client.post(f"/api/v1/studies/{study}/join", json={})
+                assert queued.status_code == 503, queued.text
+            finally:
+                client.ctx.db._write_lock.release()
+        finally:
+            other.execute("ROLLBACK")
+            other.close()
+        ok = client.post("/api/v1/me/consent", json={"agree": True, "consent_version": "1"}, headers=bearer(token))
+        assert ok.status_code == 200 and ok.json()["stage"] == "instructions"
+
+
+def test_a_deleted_database_file_fails_health_and_refuses_writes(tmp_path: Path, caplog) -> None:
+    import os
+
+    from .helpers import bearer, make_study
+
+    with _busy_app(tmp_path) as client:
+        study = make_study(client)
+        token = client.post(f"/api/v1/studies/{study}/join", json={}).json()["token"]
+        assert client.get("/healthz").status_code == 200
+        for suffix in ("", "-wal", "-shm"):
+            path = tmp_path / f"busy.db{suffix}"
+            if path.exists():
+                os.remove(path)
+        health = client.get("/healthz")
+        assert health.status_code == 503 and "Retry-After" in health.headers
+        write = client.post("/api/v1/me/consent", json={"agree": True, "consent_version": "1"}, headers=bearer(token))
+        assert write.status_code == 503 and "Nothing you did was lost" in write.json()["detail"]
+        assert client.get("/api/v1/me", headers=bearer(token)).status_code == 503
+        assert client.post(f"/api/v1/studies/{study}/join", json={}).status_code == 503
+        assert not (tmp_path / "busy.db").exists()  # no empty database was created in its place
+        assert "was deleted under the running server" in caplog.text
