@@ -98,6 +98,19 @@ class EarlierRequest:
     request_digest: str | None
 
 
+_LOCK_PARTICIPANT = select(ParticipantRow.id).where(ParticipantRow.token == bindparam("token")).with_for_update()
+
+
+def lock_participant(session: Session, *, token: str) -> None:
+    """Lock the participant's row until the transaction ends, where the database has row locks (PostgreSQL).
+
+    Requests of one participant then run one after another, so a retry with the same idempotency key
+    finds the first one's event (a fresh statement sees it under READ COMMITTED) and replays it. SQLite needs
+    no lock: its writes are serialised by BEGIN IMMEDIATE."""
+    if session.get_bind().dialect.name != "sqlite":
+        session.execute(_LOCK_PARTICIPANT, {"token": token})
+
+
 def get_participant_and_study(session: Session, *, token: str) -> tuple[ParticipantRow, StudyRow] | None:
     """The participant whose secret token this is, with their study (one query)."""
     found = get_participant_for_request(session, token=token, client_event_id=None)

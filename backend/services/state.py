@@ -219,6 +219,8 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
     """Run one participant action in a write transaction: replay check, change, log, commit, new state."""
     digest = _digest(action, body)
     with ctx.db.write() as s:
+        if token:
+            repo.lock_participant(s, token=token)  # one request per participant at a time (PostgreSQL)
         found = repo.get_participant_for_request(s, token=token, client_event_id=key) if token else None
         if found is None:
             raise _unknown_token()
