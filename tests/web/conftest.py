@@ -50,7 +50,8 @@ class ServerProcess:
     def start(self) -> "ServerProcess":
         """Start and wait until /healthz answers."""
         self.port = free_port()
-        env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": EXPERIMENTER_TOKEN, **self.env}
+        env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": EXPERIMENTER_TOKEN,
+               "TABLETEACH_DATA_DIR": str(self.db_path.parent / "data"), **self.env}
         env.pop("TABLETEACH_DEV_MODE", None)
         log = open(self.db_path.with_suffix(f".{self.port}.log"), "wb")
         self.proc = subprocess.Popen(

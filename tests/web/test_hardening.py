@@ -499,3 +499,43 @@ def test_a_deleted_database_file_fails_health_and_refuses_writes(tmp_path: Path,
         assert client.post(f"/api/v1/studies/{study}/join", json={}).status_code == 503
         assert not (tmp_path / "busy.db").exists()  # no empty database was created in its place
         assert "was deleted under the running server" in caplog.text
+
+
+# -- item 8: hermetic tests ------------------------------------------------------------------------------------
+
+
+def test_under_the_tests_the_settings_defaults_are_outside_the_checkouts_var() -> None:
+    from sqlalchemy.engine import make_url
+
+    from tableteach.config import Settings
+
+    from ..conftest import CHECKOUT_VAR
+
+    defaults = Settings()
+    database = Path(make_url(defaults.database_url).database or "").resolve()
+    for path in (Path(defaults.data_dir).resolve(), database):
+        assert not path.is_relative_to(CHECKOUT_VAR.resolve()), path
+
+
+def test_a_server_the_tests_start_keeps_its_files_in_its_temp_folder(server_factory, tmp_path: Path) -> None:
+    from .conftest import open_study, study_spec
+
+    server = server_factory()
+    open_study(server.url, study_spec(["active"]))
+    assert server.proc is not None
+    raw = Path(f"/proc/{server.proc.pid}/environ").read_bytes().split(b"\0")
+    environ = dict(item.decode().split("=", 1) for item in raw if b"=" in item)
+    assert Path(environ["TABLETEACH_DATA_DIR"]).resolve().is_relative_to(tmp_path.resolve())
+
+
+def test_the_var_guard_notices_a_changed_file(tmp_path: Path) -> None:
+    from ..conftest import var_snapshot
+
+    folder = tmp_path / "var"
+    assert var_snapshot(folder) is None
+    (folder / "data").mkdir(parents=True)
+    (folder / "data" / "x.npz").write_bytes(b"1")
+    before = var_snapshot(folder)
+    assert before == var_snapshot(folder)
+    (folder / "data" / "x.npz").write_bytes(b"12")
+    assert var_snapshot(folder) != before
