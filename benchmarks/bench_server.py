@@ -209,7 +209,7 @@ def main() -> int:
     if args.teachers < 1 or args.think < 0:
         parser.error("--teachers must be at least 1 and --think at least 0")
 
-    token = args.token or secrets.token_urlsafe(18)
+    token = args.token or secrets.token_urlsafe(32)  # a generated key, as the server requires
     proc = None
     url = args.server
     if url is None:
