@@ -42,4 +42,5 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     errors.install(app)
     for module in (participants, studies, exports, analysis, dashboard, viewer, pages):
         app.include_router(module.router)
+    app.include_router(studies.formulas)
     return app
