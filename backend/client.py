@@ -151,7 +151,7 @@ class ExperimenterClient(_Base):
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         rows = {}
-        for name in ("participants", "events", "beliefs", "questionnaire"):
+        for name in ("participants", "events", "steps", "beliefs", "questionnaire", "codebook"):
             text = self.export(study_id, name)
             (out / f"{name}.csv").write_text(text, encoding="utf-8")
             rows[name] = max(0, text.count("\r\n") - 1)
@@ -198,6 +198,8 @@ def _answers(items: list[dict[str, Any]], rng: np.random.Generator) -> dict[str,
             out[item["id"]] = int(rng.integers(3, 6))
         elif item["kind"] == "rating10":
             out[item["id"]] = int(rng.integers(6, 11))
+        elif item["kind"] == "attention":
+            out[item["id"]] = int(rng.integers(1, 6))  # the expected answer stays on the server
         else:
             out[item["id"]] = "=scripted teacher"  # starts like a formula on purpose: exports must escape it
     return out
@@ -226,7 +228,7 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
     deadline = time.monotonic() + timeout
     state = api.state() if api.token else api.join(study_id, prolific_pid=prolific_pid)["state"]
     run.participant_id, run.token = state["participant_id"], api.token
-    while state["stage"] not in ("done", "withdrawn"):
+    while state["stage"] not in ("done", "withdrawn", "screened_out"):
         if time.monotonic() > deadline:
             raise TimeoutError(f"the session did not finish within {timeout} s (stage {state['stage']})")
         if stop_after is not None and len(run.actions) >= stop_after:
@@ -238,6 +240,8 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
         elif stage == "instructions":
             state = api.instructions()
             run.actions.append({"kind": "instructions"})
+        elif stage == "quiz":
+            raise ValueError("this study has a comprehension quiz; the scripted teacher does not know its answers")
         elif stage == "questionnaire":
             answers = _answers(state["questionnaire"], rng)
             state = api.questionnaire(answers)

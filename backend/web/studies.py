@@ -33,8 +33,10 @@ def validated_study(body: dict[str, Any]) -> dict[str, Any]:
     except ValidationError as exc:
         errors = [{"field": _field(e["loc"]), "message": e["msg"]} for e in exc.errors()]
     seen = {e["field"] for e in errors}
+    defaults = {name: f.get_default(call_default_factory=True) for name, f in StudyIn.model_fields.items()
+                if not f.is_required()}
     try:
-        more = services.study_problems(body)
+        more = services.study_problems({**defaults, **body})
     except Exception:  # values of the wrong type: pydantic has named them already
         more = []
     errors += [e for e in more if not any(e["field"] == f or e["field"].startswith(f + ".") for f in seen)]
