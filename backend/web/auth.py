@@ -9,6 +9,7 @@ import secrets
 import threading
 
 from ..config import Settings
+from .dev_token import persistent_dev_token
 
 ITERATIONS = 200_000
 WEAK_SECRETS = {"", "changeme", "change-me", "password", "secret", "admin", "dev", "tableteach", "token", "test"}
@@ -58,7 +59,8 @@ class SecretChecker:
 
 
 def experimenter_checker(settings: Settings) -> tuple[SecretChecker, str | None]:
-    """The checker for the configured secret and, in dev mode without one, a generated development token.
+    """The checker for the configured secret and, in dev mode without one, a development token kept under the
+    data folder.
 
     Outside dev mode a missing, short or well-known secret is refused (ValueError naming the setting)."""
     token = settings.experimenter_token.get_secret_value() if settings.experimenter_token else None
@@ -67,7 +69,7 @@ def experimenter_checker(settings: Settings) -> tuple[SecretChecker, str | None]
     if token is not None and (settings.dev_mode or (len(token) >= MIN_LENGTH and token.lower() not in WEAK_SECRETS)):
         return SecretChecker(hash_secret(token, iterations=1_000 if settings.dev_mode else ITERATIONS)), None
     if settings.dev_mode:
-        generated = "dev-" + secrets.token_urlsafe(18)
+        generated = persistent_dev_token(settings.data_dir)  # the same token after a restart
         return SecretChecker(hash_secret(generated, iterations=1_000)), generated
     if token is None:
         raise ValueError("no experimenter secret: set TABLETEACH_EXPERIMENTER_TOKEN (or _HASH), "

@@ -31,6 +31,7 @@ def cmd_serve(args: argparse.Namespace) -> None:
     from .. import services
     from ..db.migrate import upgrade_head
     from .app import create_app
+    from .dev_token import dev_token_path
 
     settings = _settings(args)
     app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
@@ -45,7 +46,8 @@ def cmd_serve(args: argparse.Namespace) -> None:
         lines += [f"demo study id: {study['id']}",
                   f"participant link: {base}/study/{study['id']}/join?PROLIFIC_PID=demo-participant"]
     if app.state.dev_token:
-        lines.append(f"development experimenter token (dev mode only, new on every start): {app.state.dev_token}")
+        lines.append(f"development experimenter token (dev mode only; kept in {dev_token_path(settings.data_dir)}): "
+                     f"{app.state.dev_token}")
     print("\n".join(lines), flush=True)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, access_log=False,
                 timeout_graceful_shutdown=5)

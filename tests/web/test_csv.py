@@ -14,8 +14,8 @@ from tableteach.web.exports import FORMULA_STARTS, cell, csv_lines
 def test_formula_like_cells_get_an_apostrophe() -> None:
     assert [cell(v) for v in ["=1+1", "+1", "-2", "@SUM(A1)", "\tx", "\rx"]] == [
         "'=1+1", "'+1", "'-2", "'@SUM(A1)", "'\tx", "'\rx"]
-    assert [cell(v) for v in ["F(bowl)", "(!bowl U knife)", -2, 0.5, None, True]] == [
-        "F(bowl)", "(!bowl U knife)", -2, 0.5, None, True]
+    assert [cell(v) for v in ["F(bowl)", "(!bowl U knife)", -2, 0.5, None, True, False]] == [
+        "F(bowl)", "(!bowl U knife)", -2, 0.5, None, "true", "false"]
 
 
 @given(st.lists(st.lists(st.text(max_size=12), min_size=1, max_size=4), min_size=1, max_size=6))

@@ -291,3 +291,9 @@ def test_idle_past_the_timeout_is_screened_out_and_kept(app_client) -> None:
     assert [p["timed_out"] for p in people.values()] == ["true", "true"]  # the other one by the export's sweep
     events = rows(app_client, study, "events")
     assert {e["kind"] for e in events} >= {"instructions_read", "task_started", "screened_out"}
+
+
+def test_the_front_page_points_to_the_dashboard(app_client) -> None:
+    r = app_client.get("/")
+    assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
+    assert 'href="/dashboard"' in r.text and "link you were given" in r.text
