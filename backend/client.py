@@ -142,17 +142,18 @@ class ExperimenterClient(_Base):
         """A participant's belief summary."""
         return self._json("GET", f"/api/v1/studies/{study_id}/participants/{participant_id}/belief")
 
-    def export(self, study_id: str, name: str) -> str:
-        """One CSV export as text."""
-        return self._request("GET", f"/api/v1/studies/{study_id}/exports/{name}.csv").text
+    def export(self, study_id: str, name: str, *, include_pilot: bool = False) -> str:
+        """One CSV export as text (pilot participants only if include_pilot)."""
+        query = "?include_pilot=true" if include_pilot else ""
+        return self._request("GET", f"/api/v1/studies/{study_id}/exports/{name}.csv{query}").text
 
-    def export_all(self, study_id: str, out_dir: str | Path) -> dict[str, int]:
-        """Download every CSV export into a folder; rows per file (header excluded)."""
+    def export_all(self, study_id: str, out_dir: str | Path, *, include_pilot: bool = False) -> dict[str, int]:
+        """Download every CSV export and the codebook into a folder; rows per file (header excluded)."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         rows = {}
         for name in ("participants", "events", "steps", "beliefs", "questionnaire", "codebook"):
-            text = self.export(study_id, name)
+            text = self.export(study_id, name, include_pilot=include_pilot)
             (out / f"{name}.csv").write_text(text, encoding="utf-8")
             rows[name] = max(0, text.count("\r\n") - 1)
         return rows

@@ -90,7 +90,7 @@ def cmd_export(args: argparse.Namespace) -> dict:
 
     client = ExperimenterClient(args.server, token=args.token)
     try:
-        rows = client.export_all(args.study, args.out)
+        rows = client.export_all(args.study, args.out, include_pilot=args.include_pilot)
     except ApiError as exc:
         raise ValueError(f"the server refused the export: {exc}") from exc
     except httpx.HTTPError as exc:
@@ -139,7 +139,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     export.add_argument("--server", required=True, help="server base URL")
     export.add_argument("--study", required=True, help="study id")
     export.add_argument("--token", required=True, help="experimenter token")
-    export.add_argument("--out", required=True, help="folder to write participants/events/beliefs/questionnaire.csv")
+    export.add_argument("--out", required=True,
+                        help="folder to write participants/events/steps/beliefs/questionnaire.csv and codebook.csv")
+    export.add_argument("--include-pilot", action="store_true", help="also pilot participants (left out by default)")
     export.set_defaults(run=cmd_export)
 
     hash_token = sub.add_parser("hash-token", help="hash an experimenter secret read from stdin")

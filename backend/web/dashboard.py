@@ -11,6 +11,7 @@ from .frontend_files import FRONTEND, allowed_file
 ASSETS = {
     "dashboard.js": "text/javascript",
     "dashboard-api.js": "text/javascript",
+    "dashboard-study-form.js": "text/javascript",
     "charts.js": "text/javascript",
     "dom.js": "text/javascript",
     "dashboard.css": "text/css",

@@ -18,6 +18,8 @@ router = APIRouter(prefix="/api/v1/studies", tags=["experimenter"], dependencies
 formulas = APIRouter(prefix="/api/v1/formulas", tags=["experimenter"], dependencies=[Experimenter],
                      responses=error_responses(401, 422))
 StudyBody = Annotated[dict[str, Any], Body(description="a study definition: the fields of StudyIn (docs/server.md)")]
+STUDY_IN = {"requestBody": {"required": True, "content": {"application/json": {
+    "schema": {"$ref": "#/components/schemas/StudyIn"}}}}}
 
 
 def _field(loc: tuple[Any, ...]) -> str:
@@ -51,7 +53,7 @@ def list_studies(ctx: ContextDep) -> list[dict]:
     return services.list_studies(ctx)
 
 
-@router.post("", response_model=StudyOut, status_code=status.HTTP_201_CREATED)
+@router.post("", response_model=StudyOut, status_code=status.HTTP_201_CREATED, openapi_extra=STUDY_IN)
 def create_study(body: StudyBody, ctx: ContextDep) -> dict:
     """Create a study (status draft; open it to let participants join). A 422 lists every bad field in errors."""
     return services.create_study(ctx, validated_study(body))
@@ -61,6 +63,12 @@ def create_study(body: StudyBody, ctx: ContextDep) -> dict:
 def get_study(study_id: str, ctx: ContextDep) -> dict:
     """One study."""
     return services.get_study(ctx, study_id)
+
+
+@router.get("/{study_id}/spec", response_model=StudyIn)
+def study_spec(study_id: str, ctx: ContextDep) -> dict:
+    """The study as the definition that would create it again (what the dashboard's edit form starts from)."""
+    return services.editable_spec(services.get_study(ctx, study_id))
 
 
 @router.patch("/{study_id}", response_model=StudyOut)
