@@ -28,20 +28,20 @@ def _field(loc: tuple[Any, ...]) -> str:
 
 def validated_study(body: dict[str, Any]) -> dict[str, Any]:
     """The study definition checked field by field; InvalidFields lists every unacceptable field at once."""
-    errors: list[dict[str, str]] = []
     model = None
+    schema_errors: list[dict[str, str]] = []
     try:
         model = StudyIn.model_validate(body)
     except ValidationError as exc:
-        errors = [{"field": _field(e["loc"]), "message": e["msg"]} for e in exc.errors()]
-    seen = {e["field"] for e in errors}
+        schema_errors = [{"field": _field(e["loc"]), "message": e["msg"]} for e in exc.errors()]
     defaults = {name: f.get_default(call_default_factory=True) for name, f in StudyIn.model_fields.items()
                 if not f.is_required()}
     try:
-        more = services.study_problems({**defaults, **body})
-    except Exception:  # values of the wrong type: pydantic has named them already
-        more = []
-    errors += [e for e in more if not any(e["field"] == f or e["field"].startswith(f + ".") for f in seen)]
+        errors = services.study_problems({**defaults, **body})  # the plainer words, where both say something
+    except Exception:  # values of the wrong type: the schema's messages name them
+        errors = []
+    seen = {e["field"] for e in errors}
+    errors += [e for e in schema_errors if not any(e["field"] == f or e["field"].startswith(f + ".") for f in seen)]
     if errors or model is None:
         raise InvalidFields(errors or [{"field": "body", "message": "expected a study definition"}])
     return model.model_dump()
