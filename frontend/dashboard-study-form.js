@@ -170,7 +170,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
     }
     const count = error.errors?.length ?? 0;
     message.replaceChildren(h("div", { class: "error", role: "alert" },
-      count ? `${count} field${count > 1 ? "s need" : " needs"} a change (marked below).` : error.detail,
+      count ? `${count} field${count > 1 ? "s need" : " needs"} a change: see the messages in red above.` : error.detail,
       unplaced.length ? h("ul", {}, unplaced.map((u) => h("li", {}, u))) : null));
     form.querySelector(".invalid")?.focus();
   };
@@ -190,7 +190,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
   });
 
   const section = (title, ...children) => h("fieldset", { "data-live": "no" }, h("legend", {}, title), ...children);
-  form.append(
+  form.append(...[
     h("h1", {}, editing ? `Edit ${study.name}` : "New study"),
     frozen ? h("p", { class: "note" }, `This study is ${study.status}: only its name, pilot flag, completion codes, `
       + "redirect and timeout can change. Clone it to change the rest.") : null,
@@ -229,7 +229,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
       h("label", { class: "inline" }, checkbox("pilot", d.pilot), "Pilot: participants who join now are flagged as pilots")),
     h("div", { class: "row" }, h("button", { type: "submit", class: "primary", id: "create" }, editing ? "Save changes" : "Create study"),
       h("a", { href: editing ? `#/study/${encodeURIComponent(study.id)}` : "#/", class: "button ghost" }, "Cancel")),
-    message);
+    message].filter(Boolean));
   if (editing) form.querySelector("[name=consent_text]").value = study.consent_text;
   if (frozen) {
     for (const set of form.querySelectorAll("fieldset[data-live=no]")) set.disabled = true;

@@ -329,7 +329,8 @@ async function studyView(studyId) {
 function progressText(p) {
   if (p.stage === "task" && p.step) {
     const step = p.step.kind === "done" ? "finishing" : `${p.step.kind} ${p.step.index + 1}/${p.step.total}`;
-    return `task ${p.step.task_index + 1}/${p.n_tasks} · ${step}`;
+    const position = p.task_order ? p.task_order.indexOf(p.step.task_index) : p.step.task_index;
+    return `task ${position + 1}/${p.n_tasks} · ${step}`;
   }
   return p.stage;
 }

@@ -83,7 +83,7 @@ export function syncWithdrawLink(state, { onWithdraw, pending }) {
   if (!bar) return;
   let link = document.getElementById("withdraw-link");
   if (!link) {
-    const dialog = h("dialog", { id: "withdraw-dialog", class: "card narrow" },
+    const dialog = h("dialog", { id: "withdraw-dialog" },
       h("h2", {}, "Withdraw from the study?"),
       h("p", {}, "If you withdraw, everything recorded about your session (your actions and answers) is deleted, and ",
         "you cannot continue. You do not have to give a reason."),

@@ -143,6 +143,8 @@ def screenshots(out_dir: Path) -> None:
                 page.wait_for_selector("#create-message .error")
                 time.sleep(0.5)
                 page.screenshot(path=str(out_dir / "form.png"), full_page=True)
+                page.evaluate("window.scrollTo(0, 0)")
+                page.screenshot(path=str(out_dir / "form-top.png"))
                 page.goto(f"{server.url}/")
                 page.screenshot(path=str(out_dir / "home.png"))
         finally:
