@@ -297,3 +297,20 @@ def test_the_front_page_points_to_the_dashboard(app_client) -> None:
     r = app_client.get("/")
     assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
     assert 'href="/dashboard"' in r.text and "link you were given" in r.text
+
+
+def test_bad_input_to_the_new_endpoints_names_the_field(app_client) -> None:
+    study = make_study(app_client, **SHORT)
+    r = app_client.patch(f"/api/v1/studies/{study}", json={"colour": "red"}, headers=EXP)
+    assert r.status_code == 422 and r.json()["errors"][0]["field"] == "colour"
+    r = app_client.delete(f"/api/v1/studies/{study}/participants/0", headers=EXP)
+    assert r.status_code == 422 and "participant_id" in r.json()["detail"]
+    r = app_client.get(f"/api/v1/studies/{study}/exports/steps.csv?include_pilot=maybe", headers=EXP)
+    assert r.status_code == 422 and "include_pilot" in r.json()["detail"]
+    assert app_client.post("/api/v1/studies/nope/pilot/reset", headers=EXP).status_code == 404
+    assert app_client.delete("/api/v1/studies/nope/participants/1", headers=EXP).status_code == 404
+    token, _ = to_teaching(app_client, study)
+    r = app_client.post("/api/v1/me/quiz", json={"answers": {"who": "first"}}, headers=bearer(token))
+    assert r.status_code == 422 and "answers.who" in r.json()["detail"]
+    r = app_client.post("/api/v1/me/quiz", json={"answers": {}}, headers=bearer(token))
+    assert r.status_code == 409 and "quiz stage" in r.json()["detail"]
