@@ -22,6 +22,7 @@ from .db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
 from .errors import NotFound
 from .services import Context
 from .services.context import iso
+from .services.lifecycle import expire_timeouts
 from .services.monitoring import (
     belief_view,
     FINISHED,
@@ -47,6 +48,9 @@ def _step_of(state: core.SessionState) -> dict[str, Any]:
 def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | None = None) -> dict[str, Any]:
     """Participants with their current step and inactivity; unfinished ones idle past the threshold are dropouts."""
     threshold = ctx.settings.active_minutes if dropout_minutes is None else dropout_minutes
+    with ctx.db.read() as s:
+        study_row(s, study_id)
+    expire_timeouts(ctx, study_id)
     now = utcnow()
     with ctx.db.read() as s:
         study = study_row(s, study_id)
@@ -199,13 +203,15 @@ def _quantile(values: list[float], q: float) -> float | None:
     return ordered[low] + (ordered[high] - ordered[low]) * (pos - low)
 
 
-def learning_curves(ctx: Context, study_id: str, *, finished_only: bool = False) -> dict[str, Any]:
-    """Per task and condition (and all conditions together): the curves across participants, and each one's own."""
+def learning_curves(ctx: Context, study_id: str, *, finished_only: bool = False,
+                    include_pilot: bool = False) -> dict[str, Any]:
+    """Per task and condition (and all conditions together): the curves across participants (pilots only if
+    include_pilot), and each one's own."""
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         study_tasks, study_conditions = list(study.tasks), list(study.conditions)
         per_task: dict[int, list[dict[str, Any]]] = {i: [] for i in range(len(study_tasks))}
-        for ts, p in aq.study_task_sessions_with_participants(s, study_id=study_id):
+        for ts, p in aq.study_task_sessions_with_participants(s, study_id=study_id, include_pilot=include_pilot):
             if finished_only and p.stage != "done":
                 continue
             steps = _step_summaries(ts.state_json, study_tasks[ts.task_index].get("ground_truth"), TOP_K)
@@ -225,7 +231,7 @@ def learning_curves(ctx: Context, study_id: str, *, finished_only: bool = False)
                            for c in conditions],
             "participants": series,
         })
-    return {"study_id": study_id, "finished_only": finished_only, "tasks": tasks}
+    return {"study_id": study_id, "finished_only": finished_only, "include_pilot": include_pilot, "tasks": tasks}
 
 
 # ====================================================================== replays

@@ -142,17 +142,18 @@ class ExperimenterClient(_Base):
         """A participant's belief summary."""
         return self._json("GET", f"/api/v1/studies/{study_id}/participants/{participant_id}/belief")
 
-    def export(self, study_id: str, name: str) -> str:
-        """One CSV export as text."""
-        return self._request("GET", f"/api/v1/studies/{study_id}/exports/{name}.csv").text
+    def export(self, study_id: str, name: str, *, include_pilot: bool = False) -> str:
+        """One CSV export as text (pilot participants only if include_pilot)."""
+        query = "?include_pilot=true" if include_pilot else ""
+        return self._request("GET", f"/api/v1/studies/{study_id}/exports/{name}.csv{query}").text
 
-    def export_all(self, study_id: str, out_dir: str | Path) -> dict[str, int]:
-        """Download every CSV export into a folder; rows per file (header excluded)."""
+    def export_all(self, study_id: str, out_dir: str | Path, *, include_pilot: bool = False) -> dict[str, int]:
+        """Download every CSV export and the codebook into a folder; rows per file (header excluded)."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         rows = {}
-        for name in ("participants", "events", "beliefs", "questionnaire"):
-            text = self.export(study_id, name)
+        for name in ("participants", "events", "steps", "beliefs", "questionnaire", "codebook"):
+            text = self.export(study_id, name, include_pilot=include_pilot)
             (out / f"{name}.csv").write_text(text, encoding="utf-8")
             rows[name] = max(0, text.count("\r\n") - 1)
         return rows
@@ -198,6 +199,8 @@ def _answers(items: list[dict[str, Any]], rng: np.random.Generator) -> dict[str,
             out[item["id"]] = int(rng.integers(3, 6))
         elif item["kind"] == "rating10":
             out[item["id"]] = int(rng.integers(6, 11))
+        elif item["kind"] == "attention":
+            out[item["id"]] = int(rng.integers(1, 6))  # the expected answer stays on the server
         else:
             out[item["id"]] = "=scripted teacher"  # starts like a formula on purpose: exports must escape it
     return out
@@ -227,7 +230,7 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
     deadline = time.monotonic() + timeout
     state = api.state() if api.token else api.join(study_id, prolific_pid=prolific_pid, session_id=session_id)["state"]
     run.participant_id, run.token = state["participant_id"], api.token
-    while state["stage"] not in ("done", "withdrawn"):
+    while state["stage"] not in ("done", "withdrawn", "screened_out"):
         if time.monotonic() > deadline:
             raise TimeoutError(f"the session did not finish within {timeout} s (stage {state['stage']})")
         if stop_after is not None and len(run.actions) >= stop_after:
@@ -239,6 +242,8 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
         elif stage == "instructions":
             state = api.instructions()
             run.actions.append({"kind": "instructions"})
+        elif stage == "quiz":
+            raise ValueError("this study has a comprehension quiz; the scripted teacher does not know its answers")
         elif stage == "questionnaire":
             answers = _answers(state["questionnaire"], rng)
             state = api.questionnaire(answers)

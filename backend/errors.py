@@ -26,6 +26,14 @@ class InvalidInput(TableTeachError):
     """The request is well-formed but its values are not acceptable (HTTP 422)."""
 
 
+class InvalidFields(InvalidInput):
+    """Several fields are unacceptable at once: errors lists each field's path and a plain message (HTTP 422)."""
+
+    def __init__(self, errors: list[dict[str, str]]) -> None:
+        super().__init__("; ".join(f"{e['field']}: {e['message']}" for e in errors))
+        self.errors = errors
+
+
 class NotAuthenticated(TableTeachError):
     """Missing or wrong credentials (HTTP 401)."""
 

@@ -5,10 +5,11 @@ const API = "/api/v1";
 
 /** The server refused a request: HTTP status and its message (what was wrong and what was expected). */
 export class ApiError extends Error {
-  constructor(status, detail) {
+  constructor(status, detail, errors = null) {
     super(detail);
     this.status = status;
     this.detail = detail;
+    this.errors = errors; // 422 on a study: [{field, message}] for every unacceptable field
   }
 }
 
@@ -36,14 +37,17 @@ async function request(method, path, { body, raw = false, bearer = token() } = {
   }
   if (!response.ok) {
     let detail = `${response.status} ${response.statusText}`;
+    let errors = null;
     try {
       const data = await response.json();
       if (data && data.detail) detail = typeof data.detail === "string" ? data.detail : JSON.stringify(data.detail);
+      if (data && Array.isArray(data.errors)) errors = data.errors;
     } catch {
       // not JSON: keep the status line
     }
-    throw new ApiError(response.status, detail);
+    throw new ApiError(response.status, detail, errors);
   }
+  if (response.status === 204) return null;
   return raw ? response : response.json();
 }
 
@@ -59,6 +63,11 @@ export const getStudy = (id) => request("GET", `${API}/studies/${enc(id)}`);
 export const createStudy = (spec) => request("POST", `${API}/studies`, { body: spec });
 export const openStudy = (id) => request("POST", `${API}/studies/${enc(id)}/open`);
 export const closeStudy = (id) => request("POST", `${API}/studies/${enc(id)}/close`);
+export const updateStudy = (id, changes) => request("PATCH", `${API}/studies/${enc(id)}`, { body: changes });
+export const cloneStudy = (id) => request("POST", `${API}/studies/${enc(id)}/clone`);
+export const resetPilot = (id) => request("POST", `${API}/studies/${enc(id)}/pilot/reset`);
+export const eraseParticipant = (id, pid) => request("DELETE", `${API}/studies/${enc(id)}/participants/${enc(pid)}`);
+export const describeFormula = (formula) => request("GET", `${API}/formulas/describe?formula=${enc(formula)}`);
 
 export function live(id, dropoutMinutes) {
   const query = dropoutMinutes ? `?dropout_minutes=${enc(dropoutMinutes)}` : "";
@@ -66,19 +75,21 @@ export function live(id, dropoutMinutes) {
 }
 
 export const history = (id, pid) => request("GET", `${API}/studies/${enc(id)}/participants/${enc(pid)}/history`);
-export const curves = (id, finishedOnly = false) =>
-  request("GET", `${API}/studies/${enc(id)}/curves${finishedOnly ? "?finished_only=true" : ""}`);
+export const curves = (id, finishedOnly = false, includePilot = false) =>
+  request("GET", `${API}/studies/${enc(id)}/curves?finished_only=${finishedOnly}&include_pilot=${includePilot}`);
 
 export function replay(id, pid, { task_index, kind, index }) {
   return request("GET", `${API}/studies/${enc(id)}/participants/${enc(pid)}/replays/${enc(task_index)}/${enc(kind)}/${enc(index)}`);
 }
 
-export const EXPORTS = ["participants", "events", "beliefs", "questionnaire"];
+export const EXPORTS = ["exports.zip", "participants.csv", "events.csv", "steps.csv", "beliefs.csv", "questionnaire.csv",
+  "codebook.csv"];
 
-/** One CSV export as {filename, blob} (fetched with the token: a plain link could not send it). */
-export async function exportCsv(id, name) {
-  const response = await request("GET", `${API}/studies/${enc(id)}/exports/${enc(name)}.csv`, { raw: true });
-  return { filename: `${id}-${name}.csv`, blob: await response.blob() };
+/** One export file as {filename, blob} (fetched with the token: a plain link could not send it). */
+export async function exportCsv(id, file, includePilot = false) {
+  const response = await request("GET", `${API}/studies/${enc(id)}/exports/${enc(file)}?include_pilot=${includePilot}`,
+    { raw: true });
+  return { filename: `${id}-${file}`, blob: await response.blob() };
 }
 
 /** The choices the server accepts for a new study, read from its OpenAPI schema. */
@@ -90,6 +101,7 @@ export async function studyChoices() {
   return {
     priors: props.prior.enum, criteria: props.criterion.enum, conditions: props.conditions.items.enum,
     assignments: props.assignment.enum, itemKinds: item.kind.enum, taskKeys: task.key.enum,
+    taskOrders: props.task_order.enum,
     defaults: Object.fromEntries(Object.entries(props).map(([k, v]) => [k, v.default])),
   };
 }

@@ -5,6 +5,7 @@
 import * as api from "./dashboard-api.js";
 import { PALETTE, lineChart, quatYaw, tableView } from "./charts.js";
 import { h, pretty } from "./dom.js";
+import { studyFormView } from "./dashboard-study-form.js";
 
 const POLL_MS = 4000;
 const app = document.getElementById("app");
@@ -96,6 +97,7 @@ async function route() {
   try {
     if (parts[0] === "new") return await newStudyView();
     if (parts[0] === "study" && parts[2] === "p") return await participantView(parts[1], Number(parts[3]));
+    if (parts[0] === "study" && parts[2] === "edit") return await editStudyView(parts[1]);
     if (parts[0] === "study") return await studyView(parts[1]);
     return await studiesView();
   } catch (error) {
@@ -174,91 +176,20 @@ async function studiesView() {
 async function newStudyView() {
   setCrumbs({ text: "Studies", href: "#/" }, { text: "New study" });
   const choices = await api.studyChoices();
-  const d = choices.defaults;
-  const select = (name, options, value) => h("select", { name, id: name },
-    options.map((o) => h("option", { value: o, selected: o === value }, o)));
-  const number = (name, label) => h("label", {}, label,
-    h("input", { type: "number", name, id: name, min: 0, max: 20, value: d[name], required: true }));
+  app.replaceChildren(studyFormView({ choices, onSaved: (study) => {
+    toast(`Study ${study.id} created (draft): open it to let participants join`);
+    location.hash = `#/study/${encodeURIComponent(study.id)}`;
+  } }));
+}
 
-  const tasks = h("div", { class: "rows", id: "tasks" });
-  const addTask = (key = "task1") => {
-    const truth = h("input", { name: "ground_truth", placeholder: "e.g. F(dinner_plate) & (!bowl U dinner_plate)", hidden: key !== "custom" });
-    const keySelect = select("task_key", choices.taskKeys, key);
-    keySelect.addEventListener("change", () => { truth.hidden = keySelect.value !== "custom"; });
-    tasks.append(h("div", { class: "row task-row" }, keySelect, truth,
-      h("button", { type: "button", class: "ghost", onclick: (e) => e.target.closest(".row").remove() }, "Remove")));
-  };
-  addTask("task1");
-
-  const items = h("div", { class: "rows", id: "items" });
-  const addItem = () => items.append(h("div", { class: "row item-row" },
-    h("input", { name: "item_id", placeholder: "id, e.g. learned", pattern: "[A-Za-z0-9_\\-]+", size: 12 }),
-    h("input", { name: "item_text", placeholder: "question text", class: "grow" }),
-    select("item_kind", choices.itemKinds, choices.itemKinds[0]),
-    h("label", { class: "inline" }, h("input", { type: "checkbox", name: "item_required", checked: true }), "required"),
-    h("button", { type: "button", class: "ghost", onclick: (e) => e.target.closest(".row").remove() }, "Remove")));
-
-  const message = h("div", { id: "create-message" });
-  const form = h("form", { class: "card form", id: "new-study-form", onsubmit: async (event) => {
-    event.preventDefault();
-    const f = new FormData(form);
-    const spec = {
-      name: f.get("name") || undefined,
-      tasks: [...tasks.querySelectorAll(".task-row")].map((row) => {
-        const key = row.querySelector("select").value;
-        const truth = row.querySelector("input").value.trim();
-        return key === "custom" ? { key, ground_truth: truth || null } : { key };
-      }),
-      conditions: choices.conditions.filter((c) => f.get(`condition_${c}`)),
-      assignment: f.get("assignment"),
-      n_practice: Number(f.get("n_practice")), n_demonstrations: Number(f.get("n_demonstrations")),
-      n_queries: Number(f.get("n_queries")), n_tests: Number(f.get("n_tests")),
-      prior: f.get("prior"), criterion: f.get("criterion"),
-      questionnaire: [...items.querySelectorAll(".item-row")].map((row) => ({
-        id: row.querySelector("[name=item_id]").value.trim(), text: row.querySelector("[name=item_text]").value,
-        kind: row.querySelector("[name=item_kind]").value, required: row.querySelector("[name=item_required]").checked,
-      })),
-      pilot: Boolean(f.get("pilot")),
-    };
-    for (const key of ["consent_text", "consent_version", "completion_url"]) {
-      const value = String(f.get(key) ?? "").trim();
-      if (value) spec[key] = value;
-    }
-    message.replaceChildren(h("p", { class: "muted" }, "Creating…"));
-    try {
-      const study = await api.createStudy(spec);
-      toast(`Study ${study.id} created (draft): open it to let participants join`);
-      location.hash = `#/study/${encodeURIComponent(study.id)}`;
-    } catch (error) {
-      message.replaceChildren(errorBox(error));
-    }
-  } },
-  h("h1", {}, "New study"),
-  h("label", {}, "Name", h("input", { name: "name", id: "name", value: "", placeholder: d.name, class: "grow" })),
-  h("fieldset", {}, h("legend", {}, "Tasks, in order"), tasks,
-    h("button", { type: "button", class: "ghost", onclick: () => addTask("task2") }, "Add a task")),
-  h("fieldset", {}, h("legend", {}, "Conditions (protocols) and assignment"),
-    h("div", { class: "row" }, choices.conditions.map((c) => h("label", { class: "inline" },
-      h("input", { type: "checkbox", name: `condition_${c}`, id: `condition_${c}`, checked: d.conditions.includes(c) }), c)),
-    h("label", {}, "Assignment", select("assignment", choices.assignments, d.assignment)))),
-  h("fieldset", {}, h("legend", {}, "Counts per task"),
-    h("div", { class: "row" }, number("n_practice", "Practice (first task only)"), number("n_demonstrations", "Demonstrations"),
-      number("n_queries", "Queries"), number("n_tests", "Tests"))),
-  h("fieldset", {}, h("legend", {}, "Learner"),
-    h("div", { class: "row" }, h("label", {}, "Prior", select("prior", choices.priors, d.prior)),
-      h("label", {}, "Planning criterion", select("criterion", choices.criteria, d.criterion)))),
-  h("fieldset", {}, h("legend", {}, "Questionnaire"), items,
-    h("button", { type: "button", class: "ghost", id: "add-item", onclick: addItem }, "Add an item")),
-  h("fieldset", {}, h("legend", {}, "Consent and completion"),
-    h("label", {}, "Consent text (empty: the default text)", h("textarea", { name: "consent_text", rows: 3 })),
-    h("div", { class: "row" }, h("label", {}, "Consent version", h("input", { name: "consent_version", placeholder: "1" })),
-      h("label", { class: "grow" }, "Completion redirect ({code} is replaced)",
-        h("input", { name: "completion_url", id: "completion_url", placeholder: "https://app.prolific.com/submissions/complete?cc={code}" }))),
-    h("label", { class: "inline" }, h("input", { type: "checkbox", name: "pilot" }), "Pilot study")),
-  h("div", { class: "row" }, h("button", { type: "submit", class: "primary", id: "create" }, "Create study"),
-    h("a", { href: "#/", class: "button ghost" }, "Cancel")),
-  message);
-  app.replaceChildren(form);
+async function editStudyView(studyId) {
+  const [choices, study] = await Promise.all([api.studyChoices(), api.getStudy(studyId)]);
+  setCrumbs({ text: "Studies", href: "#/" }, { text: study.name, href: `#/study/${encodeURIComponent(studyId)}` },
+    { text: "Edit" });
+  app.replaceChildren(studyFormView({ choices, study, onSaved: (saved) => {
+    toast("Changes saved");
+    location.hash = `#/study/${encodeURIComponent(saved.id)}`;
+  } }));
 }
 
 // ---------------------------------------------------------------- one study
@@ -293,7 +224,37 @@ async function studyView(studyId) {
       h("div", { class: "link-box" }, h("label", { for: "join-link" }, "Participant link"),
         h("div", { class: "row" }, linkInput,
           h("button", { id: "copy-link", onclick: () => copyText(linkInput.value, linkInput) }, "Copy"), toggle),
-        h("label", { class: "inline small" }, prolific, "with Prolific placeholders")));
+        h("label", { class: "inline small" }, prolific, "with Prolific placeholders"),
+        h("div", { class: "row small study-actions" },
+          h("a", { class: "button", id: "edit-study", href: `#/study/${encodeURIComponent(study.id)}/edit` }, "Edit"),
+          h("button", { id: "clone-study", onclick: cloneStudy }, "Clone"),
+          h("button", { id: "reset-pilot", onclick: resetPilot }, "Reset pilot…")),
+        codesNote()));
+  };
+  const codesNote = () => (study.completion_code
+    ? h("p", { class: "small muted" }, "Completion code ", h("code", {}, study.completion_code),
+      study.screened_out_code ? [" · screened-out code ", h("code", {}, study.screened_out_code)] : null,
+      study.timeout_minutes ? ` · time-out after ${study.timeout_minutes} min` : null)
+    : h("p", { class: "small warn" }, "No completion code set: each participant gets their own code, which Prolific cannot check. ",
+      h("a", { href: `#/study/${encodeURIComponent(study.id)}/edit` }, "Set the codes")));
+  const cloneStudy = async () => {
+    try {
+      const copy = await api.cloneStudy(study.id);
+      toast(`Draft copy ${copy.id} created`);
+      location.hash = `#/study/${encodeURIComponent(copy.id)}/edit`;
+    } catch (error) {
+      toast(error.detail ?? String(error), "error");
+    }
+  };
+  const resetPilot = async () => {
+    if (!confirm("Erase every pilot participant of this study? Their data are deleted for good; the other participants are not touched.")) return;
+    try {
+      const answer = await api.resetPilot(study.id);
+      toast(`Pilot reset: ${answer.erased.length} pilot participant(s) erased`);
+      poll();
+    } catch (error) {
+      toast(error.detail ?? String(error), "error");
+    }
   };
   const setStatus = async (call) => {
     try {
@@ -306,8 +267,10 @@ async function studyView(studyId) {
   };
   renderHead();
 
+  const includePilot = h("input", { type: "checkbox", id: "include-pilot", checked: study.pilot });
   const downloads = h("div", { class: "row", id: "downloads" }, api.EXPORTS.map((name) => h("button", {
-    "data-export": name, onclick: () => download(study.id, name) }, `${name}.csv`)));
+    "data-export": name.replace(/\.(csv|zip)$/, ""), class: name.endsWith(".zip") ? "primary" : "",
+    onclick: () => download(study.id, name, includePilot.checked) }, name)));
 
   app.replaceChildren(head,
     h("section", { class: "card" },
@@ -317,27 +280,30 @@ async function studyView(studyId) {
       liveBox),
     h("section", { class: "card" },
       h("div", { class: "section-head" }, h("h2", {}, "Learning curves"),
-        h("label", { class: "inline small" }, finishedOnly, "completed participants only")),
+        h("div", { class: "row small" }, h("label", { class: "inline" }, finishedOnly, "completed participants only"),
+          h("label", { class: "inline" }, includePilot, "include pilot participants"))),
       h("p", { class: "muted small" }, "After each learning step (0: the prior; then each demonstration or assessed query): ",
         "median expected similarity to the ground truth (band: interquartile range, thin lines: participants) and mean entropy of the belief."),
       curvesBox),
     h("section", { class: "card" }, h("h2", {}, "Downloads"),
-      h("p", { class: "muted small" }, "CSV files as described in docs/server.md (UTF-8, one header row)."), downloads));
+      h("p", { class: "muted small" }, "exports.zip holds every CSV, codebook.csv (what each column means) and the ",
+        "study definition. Pilot participants are left out unless \"include pilot participants\" is ticked."), downloads));
 
   let signature = null;
   const refreshCurves = async () => {
     try {
-      renderCurves(curvesBox, await api.curves(study.id, finishedOnly.checked), study);
+      renderCurves(curvesBox, await api.curves(study.id, finishedOnly.checked, includePilot.checked), study);
     } catch (error) {
       curvesBox.replaceChildren(errorBox(error));
     }
   };
   finishedOnly.addEventListener("change", refreshCurves);
+  includePilot.addEventListener("change", refreshCurves);
   const poll = async () => {
     const minutes = Number(dropoutInput.value) > 0 ? Number(dropoutInput.value) : null;
     const data = await api.live(study.id, minutes);
     if (!dropoutInput.value) dropoutInput.placeholder = String(data.dropout_minutes);
-    renderLive(liveBox, data, study);
+    renderLive(liveBox, data, study, poll);
     updated.textContent = `updated ${new Date().toLocaleTimeString()}`;
     const now = data.participants.map((p) => `${p.participant_id}:${p.n_events}`).join(",");
     if (now !== signature) {
@@ -363,18 +329,41 @@ async function studyView(studyId) {
 function progressText(p) {
   if (p.stage === "task" && p.step) {
     const step = p.step.kind === "done" ? "finishing" : `${p.step.kind} ${p.step.index + 1}/${p.step.total}`;
-    return `task ${p.step.task_index + 1}/${p.n_tasks} · ${step}`;
+    const position = p.task_order ? p.task_order.indexOf(p.step.task_index) : p.step.task_index;
+    return `task ${position + 1}/${p.n_tasks} · ${step}`;
   }
   return p.stage;
 }
 
-function renderLive(box, data, study) {
+function duration(seconds) {
+  if (seconds === null || seconds === undefined) return "–";
+  const m = Math.floor(seconds / 60);
+  return m >= 60 ? `${Math.floor(m / 60)} h ${m % 60} min` : `${m} min ${Math.round(seconds % 60)} s`;
+}
+
+const END_REASONS = { declined_consent: "declined consent", withdrew: "withdrew", comprehension: "failed the quiz",
+  timeout: "timed out" };
+
+async function erase(study, p, after) {
+  if (!confirm(`Erase participant #${p.participant_id}? Their events, answers, beliefs and robot recordings are deleted `
+    + "for good; an audit entry without personal data is kept.")) return;
+  try {
+    await api.eraseParticipant(study.id, p.participant_id);
+    toast(`Participant #${p.participant_id} erased`);
+    after();
+  } catch (error) {
+    toast(error.detail ?? String(error), "error");
+  }
+}
+
+function renderLive(box, data, study, refresh) {
   const ps = data.participants;
   const count = (pred) => ps.filter(pred).length;
   const summary = h("div", { class: "stats" },
     [["participants", ps.length], ["active", count((p) => p.status === "active")], ["idle", count((p) => p.status === "idle")],
       ["done", count((p) => p.status === "done")], ["withdrawn", count((p) => p.status === "withdrawn")],
-      ["dropouts", count((p) => p.dropout)]].map(([label, n]) => h("div", { class: `stat stat-${label}` }, h("b", {}, n), label)));
+      ["screened out", count((p) => p.status === "screened_out")], ["dropouts", count((p) => p.dropout)],
+      ["attention failed", count((p) => p.attention_failed)]].map(([label, n]) => h("div", { class: `stat stat-${label}` }, h("b", {}, n), label)));
   if (!ps.length) {
     box.replaceChildren(summary, h("p", { class: "muted" }, study.status === "open"
       ? "No participants yet: share the link above." : "No participants yet. Open the study to let participants join."));
@@ -387,14 +376,19 @@ function renderLive(box, data, study) {
     h("td", {}, h("a", { href }, `#${p.participant_id}`), p.pilot ? pill("pilot") : null),
     h("td", {}, p.condition),
     h("td", {}, progressText(p)),
-    h("td", {}, pill(p.status), p.dropout ? pill("dropout") : null),
+    h("td", {}, pill(p.status.replace("_", " "), p.status), p.dropout ? pill("dropout") : null,
+      p.attention_failed ? pill("attention failed", "flag") : null,
+      p.end_reason && p.end_reason !== "withdrew" ? h("span", { class: "small muted" }, ` ${END_REASONS[p.end_reason] ?? p.end_reason}`) : null),
+    h("td", { class: "num", title: `joined ${when(p.created_at)}` }, duration(p.elapsed_seconds)),
     h("td", { title: when(p.last_activity_at) }, ago(p.last_activity_at)),
     h("td", { class: "num" }, p.n_events),
     h("td", {}, p.prolific_pid ?? h("span", { class: "muted" }, "–")),
-    h("td", {}, p.completion_code ? h("code", {}, p.completion_code) : h("span", { class: "muted" }, "–")));
+    h("td", {}, p.completion_code ? h("code", {}, p.completion_code) : h("span", { class: "muted" }, "–")),
+    h("td", {}, h("button", { class: "ghost small erase", title: "erase this participant's data",
+      onclick: (e) => { e.stopPropagation(); erase(study, p, refresh); } }, "Erase")));
   });
   box.replaceChildren(summary, h("table", { class: "data", id: "participants" },
-    h("thead", {}, h("tr", {}, ["Participant", "Condition", "Step", "Status", "Last activity", "Events", "External id", "Completion"]
+    h("thead", {}, h("tr", {}, ["Participant", "Condition", "Step", "Status", "Elapsed", "Last activity", "Events", "External id", "Completion", ""]
       .map((c) => h("th", {}, c)))),
     h("tbody", {}, rows)));
 }
@@ -433,9 +427,9 @@ function renderCurves(box, data, study) {
   box.replaceChildren(...blocks);
 }
 
-async function download(studyId, name) {
+async function download(studyId, name, includePilot = false) {
   try {
-    const { filename, blob } = await api.exportCsv(studyId, name);
+    const { filename, blob } = await api.exportCsv(studyId, name, includePilot);
     const url = URL.createObjectURL(blob);
     const a = h("a", { href: url, download: filename, hidden: true });
     document.body.append(a);
@@ -456,10 +450,16 @@ async function participantView(studyId, participantId) {
   const p = data.participant;
   const facts = [["Condition", p.condition], ["Stage", p.stage], ["Joined", when(p.created_at)],
     ["Last activity", `${ago(p.last_activity_at)}`], ["Finished", when(p.finished_at)], ["Events", p.n_events],
-    ["External id", p.prolific_pid ?? "–"], ["Completion code", p.completion_code ?? "–"], ["Seed", p.seed]];
+    ["External id", p.prolific_pid ?? "–"], ["Completion code", p.completion_code ?? "–"], ["Seed", p.seed],
+    ["Elapsed", duration(p.elapsed_seconds)], ["Task order", (p.task_order ?? study.tasks.map((_, i) => i)).map((i) => study.tasks[i].name).join(" → ")],
+    ["Left early", p.end_reason ? END_REASONS[p.end_reason] ?? p.end_reason : "–"],
+    ["Attention checks", p.attention_failed ? "failed" : "passed or none"]];
   app.replaceChildren(
     h("div", { class: "page-head" }, h("h1", {}, `Participant #${p.participant_id} `, pill(p.status), p.pilot ? pill("pilot") : null),
-      h("button", { onclick: () => route() }, "Refresh")),
+      h("div", { class: "row" }, h("button", { onclick: () => route() }, "Refresh"),
+        h("button", { class: "erase", id: "erase-participant", onclick: () => erase(study, p, () => {
+          location.hash = `#/study/${encodeURIComponent(studyId)}`;
+        }) }, "Erase this participant's data"))),
     h("dl", { class: "card facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, String(v))])),
     ...data.tasks.map((task) => taskSection(task, studyId, participantId)),
     data.tasks.length ? null : h("p", { class: "card muted" }, "This participant has not started a task yet."),

@@ -52,7 +52,7 @@ export function goalFigure(task, assetUrl) {
 export function taskIntroView(state, { onBegin, assetUrl }) {
   const task = state.task;
   return h("section", { class: "card intro" },
-    h("p", { class: "eyebrow" }, `Task ${task.index + 1} of ${task.total}`),
+    h("p", { class: "eyebrow" }, `Task ${(task.position ?? task.index) + 1} of ${task.total}`),
     heading(task.name),
     h("div", { class: "intro-body" },
       h("div", {}, h("p", { class: "instructions" }, task.instructions),
@@ -63,7 +63,7 @@ export function taskIntroView(state, { onBegin, assetUrl }) {
 export function progressText(state) {
   const { task, step } = state;
   if (!task || !step) return "";
-  return `Task ${task.index + 1} of ${task.total} · ${STEP_NAMES[step.kind]} ${step.index + 1} of ${step.total}`;
+  return `Task ${(task.position ?? task.index) + 1} of ${task.total} · ${STEP_NAMES[step.kind]} ${step.index + 1} of ${step.total}`;
 }
 
 /** The side panel next to the 3D view during a task. `live` is the robot's activity ({moving, caption}). */
@@ -152,7 +152,7 @@ function executionPanel(state, live, { onStart, onAssess, pending }) {
 
 function likertItem(item, index) {
   const name = `q-${item.id}`;
-  const scale = item.kind === "likert5"
+  const scale = item.kind === "likert5" || item.kind === "attention" // an attention check looks like any item
     ? LIKERT.map((label, i) => [i + 1, label])
     : Array.from({ length: 10 }, (_, i) => [i + 1, String(i + 1)]);
   return h("fieldset", { class: `item ${item.kind}` },

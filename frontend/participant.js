@@ -5,6 +5,7 @@
 import { ApiError, ParticipantApi, assetUrl, randomId, tokenFromLocation } from "./api.js";
 import { h } from "./dom.js";
 import * as views from "./participant-views.js";
+import * as ops from "./participant-study-ops.js";
 
 const TICK_MS = 1000;
 const HEARTBEAT_MS = 5000;
@@ -99,6 +100,8 @@ const handlers = {
   onStartExecution: () => act(() => api.startExecution(guard())),
   onAssess: (acceptable) => act(() => api.assess(acceptable, guard())),
   onSubmit: (answers) => act(() => api.answerQuestionnaire(answers)),
+  onQuiz: (answers) => act(() => api.act("/me/quiz", { answers })),
+  onWithdraw: () => act(() => api.act("/me/withdraw", undefined)),
   onTakeOver: async () => {
     try {
       if (await claim(true)) await refresh();
@@ -120,7 +123,7 @@ function render(force = false) {
   if (!state) return;
   const intro = state.stage === "task" && !introAcknowledged();
   const sig = JSON.stringify([state.stage, state.task, state.step, state.demonstration, state.execution,
-    state.completion?.code, live.moving, live.caption, live.view, pending, intro]);
+    state.completion?.code, state.quiz, live.moving, live.caption, live.view, pending, intro]);
   if (sig === signature && !force) return;
   signature = sig;
   const key = JSON.stringify([state.stage, state.task?.index, state.step, state.execution?.status, intro]);
@@ -132,7 +135,9 @@ function render(force = false) {
     case "consent": showScreen(views.consentView(state, withPending)); break;
     case "instructions": showScreen(views.instructionsView(state, withPending)); break;
     case "questionnaire": showScreen(views.questionnaireView(state, withPending)); break;
-    case "withdrawn": showScreen(views.withdrawnView(state)); break;
+    case "quiz": showScreen(ops.quizView(state, withPending)); break;
+    case "withdrawn": case "screened_out":
+      showScreen(ops.endedView(state, { redirectSeconds: REDIRECT_SECONDS })); scheduleRedirect(); break;
     case "done": showScreen(views.doneView(state, { redirectSeconds: REDIRECT_SECONDS })); scheduleRedirect(); break;
     case "task":
       if (intro) { showScreen(views.taskIntroView(state, withPending)); break; }
@@ -140,6 +145,7 @@ function render(force = false) {
       break;
     default: showScreen(h("p", {}, `Unknown stage ${state.stage}.`));
   }
+  ops.syncWithdrawLink(state, withPending);
   if (moved) {
     window.scrollTo(0, 0);
     document.querySelector(".focus-target")?.focus({ preventScroll: true });
@@ -274,6 +280,7 @@ async function tick() {
 window.addEventListener("pagehide", () => api.releaseTab(tabId));
 
 async function start() {
+  ops.installStyles(assetUrl);
   try {
     if (await claim()) await refresh();
   } catch (error) {

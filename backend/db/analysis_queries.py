@@ -14,13 +14,15 @@ def participant_events(session: Session, *, participant_id: int) -> list[EventRo
     return list(session.scalars(stmt))
 
 
-def study_task_sessions_with_participants(session: Session, *,
-                                          study_id: str) -> list[tuple[TaskSessionRow, ParticipantRow]]:
-    """Every teaching session of a study with its participant, by participant then task."""
+def study_task_sessions_with_participants(session: Session, *, study_id: str, include_pilot: bool = True,
+                                          ) -> list[tuple[TaskSessionRow, ParticipantRow]]:
+    """Every teaching session of a study with its participant (pilots' unless include_pilot is False)."""
     stmt = (
         select(TaskSessionRow, ParticipantRow)
         .join(ParticipantRow, TaskSessionRow.participant_id == ParticipantRow.id)
         .where(ParticipantRow.study_id == study_id)
         .order_by(TaskSessionRow.participant_id, TaskSessionRow.task_index)
     )
+    if not include_pilot:
+        stmt = stmt.where(ParticipantRow.pilot.is_(False))
     return [(ts, p) for ts, p in session.execute(stmt)]

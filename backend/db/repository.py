@@ -7,13 +7,16 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import and_, bindparam, func, insert, select
+from sqlalchemy import and_, bindparam, delete, func, insert, select
 from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
 from .engine import busy, is_busy
-from .tables import EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
+from .tables import ErasureRow, EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
+
+# Participants who left or were erased: they no longer count for balancing and an erased one is shown nowhere.
+ENDED_STAGES = ("withdrawn", "screened_out", "erased")
 
 
 class WriteConflict(Exception):
@@ -128,9 +131,12 @@ def get_participant_for_request(
     return participant, study, None if kind is None else EarlierRequest(kind, digest)
 
 
-def get_participant(session: Session, *, study_id: str, participant_id: int) -> ParticipantRow | None:
-    """A participant of a study by numeric id."""
+def get_participant(session: Session, *, study_id: str, participant_id: int,
+                    include_erased: bool = False) -> ParticipantRow | None:
+    """A participant of a study by numeric id (an erased one only if include_erased)."""
     stmt = select(ParticipantRow).where(ParticipantRow.study_id == study_id, ParticipantRow.id == participant_id)
+    if not include_erased:
+        stmt = stmt.where(ParticipantRow.stage != "erased")
     return session.scalars(stmt).one_or_none()
 
 
@@ -149,9 +155,53 @@ def add_participant(session: Session, *, values: dict[str, Any]) -> ParticipantR
     return row
 
 
-def list_participants(session: Session, *, study_id: str) -> list[ParticipantRow]:
-    """A study's participants in joining order."""
-    stmt = select(ParticipantRow).where(ParticipantRow.study_id == study_id).order_by(ParticipantRow.id)
+def list_participants(session: Session, *, study_id: str, include_pilot: bool = True) -> list[ParticipantRow]:
+    """A study's participants in joining order (never the erased ones; pilots unless include_pilot is False)."""
+    stmt = (select(ParticipantRow).where(ParticipantRow.study_id == study_id, ParticipantRow.stage != "erased")
+            .order_by(ParticipantRow.id))
+    if not include_pilot:
+        stmt = stmt.where(ParticipantRow.pilot.is_(False))
+    return list(session.scalars(stmt))
+
+
+def live_assignments(session: Session, *, study_id: str, active_since: datetime,
+                     pilot: bool) -> list[tuple[str, list[int] | None]]:
+    """Condition and task order of the participants who count for balancing: finished, or under way and active
+    since active_since (pilots only with pilots)."""
+    stmt = select(ParticipantRow.condition, ParticipantRow.task_order).where(
+        ParticipantRow.study_id == study_id, ParticipantRow.pilot.is_(pilot),
+        (ParticipantRow.stage == "done") | (
+            ParticipantRow.stage.not_in(ENDED_STAGES) & (ParticipantRow.last_activity_at >= active_since)),
+    )
+    return [(condition, order) for condition, order in session.execute(stmt)]
+
+
+def stale_participants(session: Session, *, study_id: str, idle_since: datetime) -> list[ParticipantRow]:
+    """Participants of a study still under way whose last request came before idle_since."""
+    stmt = select(ParticipantRow).where(
+        ParticipantRow.study_id == study_id, ParticipantRow.stage.not_in(("done", *ENDED_STAGES)),
+        ParticipantRow.last_activity_at < idle_since)
+    return list(session.scalars(stmt))
+
+
+def delete_participant_data(session: Session, *, participant_id: int) -> None:
+    """Delete a participant's events and teaching sessions (their answers and beliefs live there)."""
+    session.info.pop("task_sessions", None)
+    session.execute(delete(EventRow).where(EventRow.participant_id == participant_id))
+    session.execute(delete(TaskSessionRow).where(TaskSessionRow.participant_id == participant_id))
+
+
+def add_erasure(session: Session, *, values: dict[str, Any]) -> ErasureRow:
+    """Record an erasure in the audit log."""
+    row = ErasureRow(**values)
+    session.add(row)
+    flush(session)
+    return row
+
+
+def list_erasures(session: Session, *, study_id: str) -> list[ErasureRow]:
+    """A study's erasure audit entries, oldest first."""
+    stmt = select(ErasureRow).where(ErasureRow.study_id == study_id).order_by(ErasureRow.id)
     return list(session.scalars(stmt))
 
 
@@ -160,7 +210,7 @@ _COUNT_BY_CONDITION = (
     .where(
         ParticipantRow.study_id == bindparam("study_id"),
         (ParticipantRow.stage == "done") | (
-            (ParticipantRow.stage != "withdrawn") & (ParticipantRow.last_activity_at >= bindparam("active_since"))
+            ParticipantRow.stage.not_in(ENDED_STAGES) & (ParticipantRow.last_activity_at >= bindparam("active_since"))
         ),
     )
     .group_by(ParticipantRow.condition)
@@ -260,8 +310,10 @@ def append_event(
 # ------------------------------------------------------------------ exports
 
 
-def iter_study_events(session: Session, *, study_id: str, kind: str | None = None) -> Iterator[EventRow]:
-    """A study's events (optionally of one kind) by participant then sequence, fetched in batches."""
+def iter_study_events(session: Session, *, study_id: str, kind: str | None = None,
+                      include_pilot: bool = True) -> Iterator[EventRow]:
+    """A study's events (optionally of one kind; pilots' unless include_pilot is False) by participant then
+    sequence, fetched in batches."""
     stmt = (
         select(EventRow)
         .join(ParticipantRow, EventRow.participant_id == ParticipantRow.id)
@@ -271,11 +323,14 @@ def iter_study_events(session: Session, *, study_id: str, kind: str | None = Non
     )
     if kind is not None:
         stmt = stmt.where(EventRow.kind == kind)
+    if not include_pilot:
+        stmt = stmt.where(ParticipantRow.pilot.is_(False))
     yield from session.scalars(stmt)
 
 
-def iter_study_task_sessions(session: Session, *, study_id: str) -> Iterator[TaskSessionRow]:
-    """A study's teaching sessions by participant then task."""
+def iter_study_task_sessions(session: Session, *, study_id: str,
+                             include_pilot: bool = True) -> Iterator[TaskSessionRow]:
+    """A study's teaching sessions (pilots' unless include_pilot is False) by participant then task."""
     stmt = (
         select(TaskSessionRow)
         .join(ParticipantRow, TaskSessionRow.participant_id == ParticipantRow.id)
@@ -283,4 +338,6 @@ def iter_study_task_sessions(session: Session, *, study_id: str) -> Iterator[Tas
         .order_by(TaskSessionRow.participant_id, TaskSessionRow.task_index)
         .execution_options(yield_per=200)
     )
+    if not include_pilot:
+        stmt = stmt.where(ParticipantRow.pilot.is_(False))
     yield from session.scalars(stmt)

@@ -6,7 +6,7 @@ import secrets
 from datetime import datetime, timezone
 from typing import Any
 
-from sqlalchemy import JSON, Boolean, DateTime, ForeignKey, Integer, MetaData, String, Text, UniqueConstraint
+from sqlalchemy import JSON, false, Boolean, DateTime, ForeignKey, Integer, MetaData, String, Text, UniqueConstraint
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 # Deterministic constraint names so that migrations (batch mode on SQLite) can refer to them.
@@ -57,6 +57,13 @@ class StudyRow(Base):
     completion_url: Mapped[str | None] = mapped_column(String(500), nullable=True)
     status: Mapped[str] = mapped_column(String(16), default="draft")
     pilot: Mapped[bool] = mapped_column(Boolean, default=False)
+    # Study operations (docs/running-a-study.md): study-level codes, counterbalancing, checks, timeouts.
+    completion_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    screened_out_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    task_order: Mapped[str] = mapped_column(String(16), default="fixed", server_default="fixed")
+    quiz: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list, server_default="[]")
+    quiz_max_attempts: Mapped[int] = mapped_column(Integer, default=2, server_default="2")
+    timeout_minutes: Mapped[int | None] = mapped_column(Integer, nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)
 
@@ -89,6 +96,12 @@ class ParticipantRow(Base):
     last_activity_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     n_events: Mapped[int] = mapped_column(Integer, default=0)
+    task_order: Mapped[list[int] | None] = mapped_column(JSON, nullable=True)  # study task indices; None: as listed
+    quiz_failures: Mapped[int] = mapped_column(Integer, default=0, server_default="0")
+    attention_failed: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
+    # Why a participant left before the end: declined_consent, withdrew, comprehension, timeout (None otherwise).
+    # An erased participant keeps only this row (stage "erased", no personal data) so that its id is never reused.
+    end_reason: Mapped[str | None] = mapped_column(String(32), nullable=True)
     version: Mapped[int] = mapped_column(Integer, nullable=False)
 
     # Optimistic locking: two writers that both read version n cannot both store version n + 1.
@@ -131,3 +144,17 @@ class EventRow(Base):
     payload: Mapped[dict[str, Any]] = mapped_column(JSON)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     app_version: Mapped[str] = mapped_column(String(32))
+
+
+class ErasureRow(Base):
+    """Audit entry of an erased participant: who erased, when and why; no personal data."""
+
+    __tablename__ = "erasures"
+
+    id: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    study_id: Mapped[str] = mapped_column(String(64), index=True)
+    participant_id: Mapped[int] = mapped_column(Integer)
+    erased_by: Mapped[str] = mapped_column(String(64))
+    reason: Mapped[str] = mapped_column(String(32))
+    pilot: Mapped[bool] = mapped_column(Boolean, default=False)
+    erased_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

@@ -5,7 +5,8 @@ demonstrations, queries, tests; core.session enforces their order) -> questionna
 action appends to the participant's event log in the same transaction that changes their state, so
 an acknowledged action is never lost. A client-supplied idempotency key makes retries harmless.
 Modules: context (shared context), studies, state (the state view and action machinery), teaching,
-participants, viewing (the 3D view and the one-tab rule), monitoring, exports.
+participants, lifecycle (withdrawal, erasure, pilot reset, timeouts), viewing (the 3D view and the one-tab
+rule), monitoring, exports, codebook.
 """
 
 from .context import TAB_LEASE_SECONDS, Context, TabLeases, app_version
@@ -18,8 +19,10 @@ from .exports import (
     QUESTIONNAIRE_COLUMNS,
     export_rows,
 )
+from .codebook import CODEBOOK_COLUMNS, codebook_rows, export_files
+from .lifecycle import erase_participant, erasure_log, expire_timeouts, reset_pilot, withdraw
 from .monitoring import belief_summary, list_participants
-from .participants import answer_questionnaire, finish_instructions, give_consent, join_study
+from .participants import answer_questionnaire, answer_quiz, finish_instructions, give_consent, join_study
 from .state import STAGES, Expect, delete_recordings, participant_state
 from .studies import (
     ASSIGNMENTS,
@@ -32,18 +35,37 @@ from .studies import (
     TASK_INSTRUCTIONS,
     TASK_KEYS,
     TASK_NAMES,
+    clone_study,
     close_study,
     create_study,
+    describe_formula,
+    editable_spec,
     get_study,
     list_studies,
     open_study,
     seed_demo_study,
+    study_problems,
     study_view,
+    update_study,
 )
 from .teaching import assess_execution, finish_demonstration, place_object, start_execution
 from .viewing import claim_tab, open_viewer, release_tab, robot_activity
 
 __all__ = [
+    "CODEBOOK_COLUMNS",
+    "answer_quiz",
+    "clone_study",
+    "codebook_rows",
+    "describe_formula",
+    "editable_spec",
+    "erase_participant",
+    "erasure_log",
+    "expire_timeouts",
+    "export_files",
+    "reset_pilot",
+    "study_problems",
+    "update_study",
+    "withdraw",
     "ASSIGNMENTS",
     "BELIEF_COLUMNS",
     "Context",

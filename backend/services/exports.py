@@ -1,4 +1,5 @@
-"""Per-study CSV exports: participants, events, beliefs and questionnaire answers."""
+"""Per-study CSV exports: participants, events, steps, beliefs and questionnaire answers (pilots left out unless
+asked for; erased participants never); the codebook that describes them is in codebook.py."""
 
 from __future__ import annotations
 
@@ -10,18 +11,27 @@ from ..core import session as core
 from ..db import repository as repo
 from ..db.tables import StudyRow
 from ..errors import NotFound
-from .context import Context, iso
+from .context import Context, aware, iso
+from .lifecycle import expire_timeouts
 from .monitoring import belief_view
 from .planning import session_of
+from .state import task_sequence
 from .studies import study_row
 
-EXPORTS = ("participants", "events", "beliefs", "questionnaire")
+EXPORTS = ("participants", "events", "steps", "beliefs", "questionnaire")
 
 
 PARTICIPANT_COLUMNS = [
-    "participant_id", "study_id", "condition", "pilot", "stage", "task_index", "prolific_pid", "external_study_id",
+    "participant_id", "study_id", "condition", "task_order", "pilot", "stage", "end_reason", "timed_out",
+    "quiz_failures", "attention_failed", "task_index", "prolific_pid", "external_study_id",
     "external_session_id", "consent_at", "consent_version", "completion_code", "created_at", "last_activity_at",
-    "finished_at", "n_events", "seed",
+    "finished_at", "total_seconds", "n_events", "seed",
+]
+
+
+STEP_COLUMNS = [
+    "participant_id", "condition", "task_position", "task_index", "task", "step_kind", "step_index", "shown_at",
+    "answered_at", "duration_seconds", "n_objects", "acceptable",
 ]
 
 
@@ -37,38 +47,54 @@ BELIEF_COLUMNS = [
 ] + [f"top{i}_{part}" for i in range(1, 6) for part in ("formula", "p")]
 
 
-QUESTIONNAIRE_COLUMNS = ["participant_id", "condition", "item_id", "item_kind", "item_text", "answer", "answered_at"]
+QUESTIONNAIRE_COLUMNS = ["participant_id", "condition", "item_id", "item_kind", "item_text", "answer",
+                         "attention_check", "attention_expected", "attention_passed", "answered_at"]
 
 
-EXPORT_COLUMNS = {"participants": PARTICIPANT_COLUMNS, "events": EVENT_COLUMNS, "beliefs": BELIEF_COLUMNS,
-                  "questionnaire": QUESTIONNAIRE_COLUMNS}
+EXPORT_COLUMNS = {"participants": PARTICIPANT_COLUMNS, "events": EVENT_COLUMNS, "steps": STEP_COLUMNS,
+                  "beliefs": BELIEF_COLUMNS, "questionnaire": QUESTIONNAIRE_COLUMNS}
+
+
+# The event that answers each kind of step: its time minus the time the step was shown is the step's duration.
+ANSWERS = {"demonstration": ("practice", "demonstration"), "assessment": ("query", "test")}
 
 
 def _json(value: Any) -> str | None:
     return None if value is None else json.dumps(value, separators=(",", ":"))
 
 
-def export_rows(ctx: Context, study_id: str, name: str) -> Iterator[list[Any]]:
-    """The rows of one export, header first; checks the study before the first row is produced."""
+def export_rows(ctx: Context, study_id: str, name: str, *, include_pilot: bool = False) -> Iterator[list[Any]]:
+    """The rows of one export, header first; checks the study (and screens out the timed-out) before the first
+    row is produced."""
     if name not in EXPORTS:
         raise NotFound(f"no export named {name!r}; expected one of {', '.join(EXPORTS)}")
     with ctx.db.read() as s:
         study_row(s, study_id)
-    return _export_rows(ctx, study_id, name)
+    expire_timeouts(ctx, study_id)
+    return _export_rows(ctx, study_id, name, include_pilot)
 
 
-def _export_rows(ctx: Context, study_id: str, name: str) -> Iterator[list[Any]]:
+def _seconds(start: Any, end: Any) -> float | None:
+    start, end = aware(start), aware(end)
+    return None if start is None or end is None else round((end - start).total_seconds(), 3)
+
+
+def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) -> Iterator[list[Any]]:
     yield EXPORT_COLUMNS[name]
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         if name == "participants":
-            for p in repo.list_participants(s, study_id=study_id):
-                yield [p.id, p.study_id, p.condition, p.pilot, p.stage, p.task_index, p.prolific_pid,
-                       p.external_study_id, p.external_session_id, iso(p.consent_at), p.consent_version,
-                       p.completion_code, iso(p.created_at), iso(p.last_activity_at), iso(p.finished_at),
+            for p in repo.list_participants(s, study_id=study_id, include_pilot=include_pilot):
+                yield [p.id, p.study_id, p.condition, _json(p.task_order or list(range(len(study.tasks)))), p.pilot,
+                       p.stage, p.end_reason, p.end_reason == "timeout", p.quiz_failures, p.attention_failed,
+                       p.task_index, p.prolific_pid, p.external_study_id, p.external_session_id, iso(p.consent_at),
+                       p.consent_version, p.completion_code, iso(p.created_at), iso(p.last_activity_at),
+                       iso(p.finished_at), _seconds(p.created_at, p.finished_at) if p.stage == "done" else None,
                        p.n_events, p.seed]
+        elif name == "steps":
+            yield from _step_rows(s, study, include_pilot)
         elif name == "events":
-            for e in repo.iter_study_events(s, study_id=study_id):
+            for e in repo.iter_study_events(s, study_id=study_id, include_pilot=include_pilot):
                 pl = e.payload or {}
                 task = None if e.task_index is None else study.tasks[e.task_index]["key"]
                 yield [e.participant_id, e.seq, iso(e.created_at), e.kind, e.task_index, task, e.step_kind,
@@ -76,20 +102,46 @@ def _export_rows(ctx: Context, study_id: str, name: str) -> Iterator[list[Any]]:
                        _json(pl.get("trace")), pl.get("acceptable"), pl.get("p_acceptable"), e.client_event_id,
                        e.app_version, _json(pl)]
         elif name == "beliefs":
-            yield from _belief_rows(s, study)
+            yield from _belief_rows(s, study, include_pilot)
         else:
             items = {item["id"]: item for item in study.questionnaire}
             conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study_id)}
-            for e in repo.iter_study_events(s, study_id=study_id, kind="questionnaire"):
+            for e in repo.iter_study_events(s, study_id=study_id, kind="questionnaire", include_pilot=include_pilot):
                 for item_id, answer in (e.payload.get("answers") or {}).items():
                     item = items.get(item_id, {})
+                    check = item.get("kind") == "attention"
                     yield [e.participant_id, conditions.get(e.participant_id), item_id, item.get("kind"),
-                           item.get("text"), answer, iso(e.created_at)]
+                           item.get("text"), answer, check, item.get("expected") if check else None,
+                           answer == item.get("expected") if check else None, iso(e.created_at)]
 
 
-def _belief_rows(s: Any, study: StudyRow) -> Iterator[list[Any]]:
+def _step_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[Any]]:
+    """One row per answered step: when it was shown (its task started or the previous step was answered), when
+    it was answered, and the seconds between."""
+    participants = {p.id: p for p in repo.list_participants(s, study_id=study.id)}
+    shown: dict[tuple[int, int], Any] = {}
+    for e in repo.iter_study_events(s, study_id=study.id, include_pilot=include_pilot):
+        if e.task_index is None:
+            continue
+        key = (e.participant_id, e.task_index)
+        if e.kind == "task_started":
+            shown[key] = e.created_at
+        elif e.step_kind in ANSWERS.get(e.kind, ()):
+            p = participants.get(e.participant_id)
+            if p is None:
+                continue
+            pl = e.payload or {}
+            objects = pl.get("placed") if e.kind == "demonstration" else pl.get("events")
+            yield [p.id, p.condition, task_sequence(study, p).index(e.task_index), e.task_index,
+                   study.tasks[e.task_index]["key"], e.step_kind, e.step_index, iso(shown.get(key)),
+                   iso(e.created_at), _seconds(shown.get(key), e.created_at), len(objects or []),
+                   pl.get("acceptable") if e.kind == "assessment" else None]
+            shown[key] = e.created_at
+
+
+def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[Any]]:
     conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study.id)}
-    for ts in repo.iter_study_task_sessions(s, study_id=study.id):
+    for ts in repo.iter_study_task_sessions(s, study_id=study.id, include_pilot=include_pilot):
         state = session_of(ts.state_json)
         task = study.tasks[ts.task_index]
         data = core.learning_data(state)

@@ -13,10 +13,11 @@ from ..db import repository as repo
 from ..db.tables import ParticipantRow, utcnow
 from ..errors import NotFound
 from .context import Context, aware, iso
+from .lifecycle import expire_timeouts
 from .planning import session_of
 from .studies import study_row
 
-FINISHED = ("done", "withdrawn")
+FINISHED = ("done", "withdrawn", "screened_out")
 
 
 def inactive_minutes(participant: ParticipantRow, now: datetime) -> float:
@@ -26,7 +27,7 @@ def inactive_minutes(participant: ParticipantRow, now: datetime) -> float:
 
 
 def live_status(participant: ParticipantRow, settings: Settings, now: datetime) -> str:
-    """done / withdrawn, else active or idle by the settings' active_minutes."""
+    """done / withdrawn / screened_out, else active or idle by the settings' active_minutes."""
     if participant.stage in FINISHED:
         return participant.stage
     return "active" if inactive_minutes(participant, now) <= settings.active_minutes else "idle"
@@ -40,7 +41,16 @@ def participant_row(participant: ParticipantRow, settings: Settings, now: dateti
         "status": live_status(p, settings, now), "pilot": p.pilot, "prolific_pid": p.prolific_pid,
         "created_at": iso(p.created_at), "last_activity_at": iso(p.last_activity_at),
         "finished_at": iso(p.finished_at), "n_events": p.n_events, "completion_code": p.completion_code,
+        "end_reason": p.end_reason, "attention_failed": p.attention_failed, "task_order": p.task_order,
+        "elapsed_seconds": _elapsed(p, now),
     }
+
+
+def _elapsed(participant: ParticipantRow, now: datetime) -> float | None:
+    """Seconds from joining to finishing (or to now while under way)."""
+    start = aware(participant.created_at)
+    end = aware(participant.finished_at) or now
+    return None if start is None else round(max(0.0, (end - start).total_seconds()), 1)
 
 
 def study_participant(s: Any, study_id: str, participant_id: int) -> ParticipantRow:
@@ -53,6 +63,9 @@ def study_participant(s: Any, study_id: str, participant_id: int) -> Participant
 
 def list_participants(ctx: Context, study_id: str) -> list[dict[str, Any]]:
     """A study's participants with their stage, current phase, live status and last activity."""
+    with ctx.db.read() as s:
+        study_row(s, study_id)
+    expire_timeouts(ctx, study_id)
     now = utcnow()
     with ctx.db.read() as s:
         study_row(s, study_id)

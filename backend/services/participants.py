@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import hashlib
 import hmac
+import itertools
 import secrets
+from collections import Counter
 from datetime import timedelta
 from typing import Any
 
@@ -13,20 +15,37 @@ from ..db import repository as repo
 from ..db.tables import StudyRow, utcnow
 from ..errors import Conflict, InvalidInput, NotFound
 from .context import Context, app_version, commit
-from .state import Action, act, require_stage, state_view
+from .state import Action, act, end_participation, require_stage, state_view, task_sequence
 from .studies import ITEM_KINDS
 from .teaching import begin_task, complete
 
 
-def _choose_condition(s: Any, study: StudyRow, settings: Settings) -> str:
-    """Random, or balanced over participants who finished or were active recently (ties at random)."""
+def _assign(s: Any, study: StudyRow, settings: Settings) -> tuple[str, list[int] | None]:
+    """The new participant's condition and task order (None: the tasks as listed).
+
+    Conditions: random, or balanced over the participants who finished or were active recently. Task order:
+    fixed, random, or balanced (every order of the tasks, crossed with the balanced conditions, so that the
+    live participants' counts per condition x order differ by at most one). Ties are broken at random."""
     rng = secrets.SystemRandom()
-    if study.assignment == "random" or len(study.conditions) == 1:
-        return rng.choice(study.conditions)
+    n_tasks = len(study.tasks)
     since = utcnow() - timedelta(minutes=settings.active_minutes)
-    counts = repo.count_by_condition(s, study_id=study.id, active_since=since)
-    fewest = min(counts.get(c, 0) for c in study.conditions)
-    return rng.choice([c for c in study.conditions if counts.get(c, 0) == fewest])
+    live: list[tuple[str, list[int] | None]] = []
+    if study.assignment == "balanced" or study.task_order == "balanced":
+        live = repo.live_assignments(s, study_id=study.id, active_since=since, pilot=study.pilot)
+    conditions = list(study.conditions)
+    if study.assignment == "random" or len(conditions) == 1:
+        conditions = [rng.choice(conditions)]
+    if study.task_order == "balanced":
+        orders = [list(o) for o in itertools.permutations(range(n_tasks))]
+    else:
+        orders = [list(range(n_tasks))]
+    counts = Counter((c, tuple(o) if o else tuple(range(n_tasks))) for c, o in live)
+    cells = [(c, o) for c in conditions for o in orders]
+    fewest = min(counts[(c, tuple(o))] for c, o in cells)
+    condition, order = rng.choice([(c, o) for c, o in cells if counts[(c, tuple(o))] == fewest])
+    if study.task_order == "random":
+        order = rng.sample(range(n_tasks), n_tasks)
+    return condition, (None if study.task_order == "fixed" else order)
 
 
 RESUME_REFUSED = ("This participant id has already started this study. To continue, open the study link again "
@@ -67,6 +86,7 @@ def join_study(
                 return state_view(s, existing, study), False
         if study.status != "open":
             raise Conflict(f"study {study_id!r} is {study.status}; participants can join only while it is open")
+        condition, task_order = _assign(s, study, ctx.settings)
         participant = repo.add_participant(s, values={
             "token": secrets.token_urlsafe(24),
             "study_id": study.id,
@@ -74,7 +94,8 @@ def join_study(
             "external_study_id": external_study_id or None,
             "external_session_id": external_session_id or None,
             "browser_digest": browser_digest(browser_secret) if browser_secret else None,
-            "condition": _choose_condition(s, study, ctx.settings),
+            "condition": condition,
+            "task_order": task_order,
             "seed": secrets.randbelow(2**31 - 1000),
             "pilot": study.pilot,
             "stage": "consent",
@@ -82,7 +103,8 @@ def join_study(
             "n_events": 0,
         })
         repo.append_event(s, participant=participant, kind="joined", app_version=app_version(), payload={
-            "condition": participant.condition, "prolific_pid": prolific_pid, "external_study_id": external_study_id,
+            "condition": participant.condition, "task_order": task_order, "prolific_pid": prolific_pid,
+            "external_study_id": external_study_id,
             "external_session_id": external_session_id,
         })
         commit(s)
@@ -105,6 +127,7 @@ def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str,
             a.participant.stage = "instructions"
         else:
             a.participant.stage = "withdrawn"
+            a.participant.end_reason = "declined_consent"
             a.participant.finished_at = now
 
     return act(ctx, token, "consent", {"agree": agree, "version": consent_version}, key, run)
@@ -115,9 +138,39 @@ def finish_instructions(ctx: Context, token: str, *, key: str | None = None) -> 
     def run(a: Action) -> None:
         require_stage(a, "instructions")
         a.log("instructions_read", {})
-        begin_task(a, 0)
+        if a.study.quiz:
+            a.participant.stage = "quiz"
+        else:
+            begin_task(a, task_sequence(a.study, a.participant)[0])
 
     return act(ctx, token, "instructions", {}, key, run)
+
+
+def answer_quiz(ctx: Context, token: str, *, answers: dict[str, Any], key: str | None = None) -> dict[str, Any]:
+    """The comprehension quiz: all correct starts the first task; a wrong attempt past the study's limit screens
+    the participant out."""
+    def run(a: Action) -> None:
+        require_stage(a, "quiz")
+        items = {item["id"]: item for item in a.study.quiz}
+        unknown = sorted(set(answers) - set(items))
+        if unknown:
+            raise InvalidInput(f"unknown quiz item(s) {', '.join(map(repr, unknown))}; expected {', '.join(items)}")
+        for item_id, item in items.items():
+            value = answers.get(item_id)
+            if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value < len(item["options"]):
+                raise InvalidInput(f"answer to quiz item {item_id!r} must be the number of an option, from 0 to "
+                                   f"{len(item['options']) - 1}, got {value!r}")
+        wrong = [i for i, item in items.items() if answers[i] != item["correct"]]
+        attempt = a.participant.quiz_failures + 1
+        a.log("quiz", {"answers": dict(answers), "wrong": wrong, "passed": not wrong, "attempt": attempt})
+        if not wrong:
+            begin_task(a, task_sequence(a.study, a.participant)[0])
+            return
+        a.participant.quiz_failures = attempt
+        if attempt >= a.study.quiz_max_attempts:
+            end_participation(a.s, a.participant, stage="screened_out", reason="comprehension")
+
+    return act(ctx, token, "quiz", {"answers": answers}, key, run)
 
 
 def _check_answer(item: dict[str, Any], value: Any) -> Any:
@@ -146,7 +199,10 @@ def answer_questionnaire(ctx: Context, token: str, *, answers: dict[str, Any],
         if missing:
             raise InvalidInput(f"required questionnaire item(s) not answered: {', '.join(missing)}")
         clean = {i: _check_answer(items[i], v) for i, v in answers.items() if v is not None}
-        a.log("questionnaire", {"answers": clean})
+        attention = {i: clean.get(i) == item["expected"] for i, item in items.items() if item["kind"] == "attention"}
+        if not all(attention.values()):
+            a.participant.attention_failed = True  # flagged in the exports and on the dashboard, never dropped
+        a.log("questionnaire", {"answers": clean, "attention": attention})
         complete(a)
 
     return act(ctx, token, "questionnaire", {"answers": answers}, key, run)

@@ -16,13 +16,44 @@ from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
 from ..sim import recordings
 from ..sim.recordings import RecordingId
-from .context import Context, app_version, commit, iso
+from .context import Context, app_version, aware, commit, iso
 from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
 
 
-STAGES = ("consent", "instructions", "task", "questionnaire", "done", "withdrawn")
+STAGES = ("consent", "instructions", "quiz", "task", "questionnaire", "done", "withdrawn", "screened_out")
+UNDER_WAY = ("consent", "instructions", "quiz", "task", "questionnaire")
+
+
+def task_sequence(study: StudyRow, participant: ParticipantRow) -> list[int]:
+    """The study's task indices in the order this participant does them (counterbalancing)."""
+    return list(participant.task_order) if participant.task_order else list(range(len(study.tasks)))
+
+
+def timed_out(study: StudyRow, participant: ParticipantRow) -> bool:
+    """Whether a participant still under way has been idle past the study's timeout."""
+    if not study.timeout_minutes or participant.stage not in UNDER_WAY:
+        return False
+    last = aware(participant.last_activity_at) or utcnow()
+    return (utcnow() - last).total_seconds() > study.timeout_minutes * 60
+
+
+def end_participation(s: Any, participant: ParticipantRow, *, stage: str, reason: str,
+                      key: str | None = None, digest: str | None = None) -> None:
+    """The participant leaves before the end (withdrawn or screened out); the reason is logged."""
+    participant.stage = stage
+    participant.end_reason = reason
+    participant.finished_at = utcnow()
+    repo.append_event(s, participant=participant, kind=stage, app_version=app_version(), payload={"reason": reason},
+                      client_event_id=key, request_digest=digest)
+
+
+def mark_timed_out(s: Any, participant: ParticipantRow) -> None:
+    """Screen out a participant idle past the study's timeout; their data stay, flagged."""
+    idle_since = aware(participant.last_activity_at)
+    end_participation(s, participant, stage="screened_out", reason="timeout")
+    participant.last_activity_at = idle_since or participant.last_activity_at  # the timeout is not activity
 
 
 def robot_key(participant: ParticipantRow, task_index: int) -> str:
@@ -99,13 +130,15 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         "consent": {"text": study.consent_text, "version": study.consent_version,
                     "given_at": iso(participant.consent_at)},
         "task": None, "step": None, "demonstration": None, "execution": None,
-        "questionnaire": None, "completion": None, "replayed": replayed,
+        "questionnaire": None, "completion": None, "quiz": None, "replayed": replayed,
     }
     if participant.stage == "task":
         ts = current_task(s, participant)
         task = study.tasks[participant.task_index]
+        sequence = task_sequence(study, participant)
         out["task"] = {"index": participant.task_index, "total": len(study.tasks), "name": task["name"],
-                       "instructions": task["instructions"], "key": task["key"]}
+                       "instructions": task["instructions"], "key": task["key"],
+                       "position": sequence.index(participant.task_index)}
         if ts is not None:
             kind, index, total = position_of(ts.state_json)
             out["step"] = {"kind": kind, "index": index, "total": total}
@@ -121,12 +154,24 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
                 else:
                     out["execution"] = {"kind": kind, "index": index, "status": "not_started",
                                         "events": None, "trace": None}
+    elif participant.stage == "quiz":
+        out["quiz"] = {"items": [{k: item[k] for k in ("id", "text", "options")} for item in study.quiz],
+                       "failed_attempts": participant.quiz_failures,
+                       "attempts_left": max(0, study.quiz_max_attempts - participant.quiz_failures)}
     elif participant.stage == "questionnaire":
-        out["questionnaire"] = study.questionnaire
+        # An attention check looks like any agreement item: its expected answer stays on the server.
+        out["questionnaire"] = [{k: v for k, v in item.items() if k != "expected"} for item in study.questionnaire]
     elif participant.stage == "done":
-        out["completion"] = {"code": participant.completion_code,
+        out["completion"] = {"code": participant.completion_code, "reason": None,
                              "redirect_url": _completion_url(study, participant.completion_code),
                              "learned": _learned(s, participant)}
+    elif participant.end_reason is not None and participant.end_reason != "withdrew":
+        # Declined consent, failed the comprehension quiz or timed out: the study's screened-out code.
+        code = study.screened_out_code
+        out["completion"] = {"code": code, "reason": participant.end_reason,
+                             "redirect_url": _completion_url(study, code), "learned": []}
+    elif participant.stage == "withdrawn":
+        out["completion"] = {"code": None, "reason": participant.end_reason, "redirect_url": None, "learned": []}
     return out
 
 
@@ -153,12 +198,17 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
         participant, study = participant_and_study(s, token)
         ts = current_task(s, participant)
         needs_write = ts is not None and ts.execution is not None and ts.execution["status"] == "running"
-        if not needs_write:
+        expired = timed_out(study, participant)
+        if not needs_write and not expired:
             if ts is not None and ts.execution is None:
                 ctx.planner.plan_ahead(ts.state_json)  # e.g. after a restart, before the participant asks
             return state_view(s, participant, study)
     with ctx.db.write() as s:
         participant, study = participant_and_study(s, token)
+        if timed_out(study, participant):
+            mark_timed_out(s, participant)
+            commit(s)
+            return state_view(s, participant, study)
         ts = current_task(s, participant)
         if ts is not None and sync_execution(ctx, s, participant, ts):
             commit(s)
@@ -225,6 +275,11 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
         if found is None:
             raise _unknown_token()
         participant, study, earlier = found
+        if earlier is None and action != "withdraw" and timed_out(study, participant):
+            mark_timed_out(s, participant)
+            repo.commit(s)
+            raise Conflict("you were away longer than this study allows, so it has ended for you",
+                           state=state_view(s, participant, study))
         if earlier is not None:
             if earlier.request_digest == digest:
                 return state_view(s, participant, study, replayed=True)

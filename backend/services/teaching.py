@@ -21,6 +21,7 @@ from .state import (
     save_recording,
     session_config,
     sync_execution,
+    task_sequence,
 )
 
 
@@ -163,16 +164,27 @@ def _advance(a: Action, ts: TaskSessionRow, new_state: core.SessionState) -> Non
         return
     a.log("task_finished", {}, task_index=ts.task_index)
     a.ctx.robot.close(robot_key(a.participant, ts.task_index))  # the next task has its own table (and view)
-    if ts.task_index + 1 < len(a.study.tasks):
-        begin_task(a, ts.task_index + 1)
+    sequence = task_sequence(a.study, a.participant)
+    position = sequence.index(ts.task_index)
+    if position + 1 < len(sequence):
+        begin_task(a, sequence[position + 1])
     elif a.study.questionnaire:
         a.participant.stage = "questionnaire"
     else:
         complete(a)
 
 
+def completion_code(a: Action) -> str:
+    """The study's completion code (its screened-out code after a failed attention check, if set); with neither
+    set, a fresh code for this participant."""
+    if a.participant.attention_failed and a.study.screened_out_code:
+        return a.study.screened_out_code
+    return a.study.completion_code or secrets.token_hex(4).upper()
+
+
 def complete(a: Action) -> None:
     a.participant.stage = "done"
     a.participant.finished_at = utcnow()
-    a.participant.completion_code = secrets.token_hex(4).upper()
-    a.log("completed", {"completion_code": a.participant.completion_code})
+    a.participant.completion_code = completion_code(a)
+    a.log("completed", {"completion_code": a.participant.completion_code,
+                        "attention_failed": a.participant.attention_failed})

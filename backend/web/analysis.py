@@ -161,6 +161,7 @@ class TaskCurvesOut(BaseModel):
 class CurvesOut(BaseModel):
     study_id: str
     finished_only: bool
+    include_pilot: bool
     tasks: list[TaskCurvesOut]
 
 
@@ -182,9 +183,10 @@ def history(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> di
 @router.get("/{study_id}/curves", response_model=CurvesOut)
 def curves(study_id: str, ctx: ContextDep,
            finished_only: Annotated[bool, Query(description="only participants who completed the study")] = False,
+           include_pilot: Annotated[bool, Query(description="also pilot participants")] = False,
            ) -> dict[str, Any]:
     """Learning curves per task and condition: median similarity and mean entropy after each learning step."""
-    return analysis.learning_curves(ctx, study_id, finished_only=finished_only)
+    return analysis.learning_curves(ctx, study_id, finished_only=finished_only, include_pilot=include_pilot)
 
 
 class TableOut(BaseModel):

@@ -62,4 +62,5 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.add_middleware(BodyLimit)
     for module in (participants, studies, exports, analysis, dashboard, viewer, pages):
         app.include_router(module.router, responses=_common_errors(module.router))
+    app.include_router(studies.formulas, responses=_common_errors(studies.formulas))
     return app

@@ -17,6 +17,7 @@ import time
 from collections import OrderedDict, deque
 
 from ..config import Settings
+from .dev_token import persistent_dev_token
 
 MIN_KEY_LENGTH = 32
 MIN_KEY_BITS = 128  # estimated as length x log2(distinct characters)
@@ -140,7 +141,7 @@ def experimenter_checker(settings: Settings) -> tuple[SecretChecker, str | None]
     if token is not None and (settings.dev_mode or key_problem(token) is None):
         return SecretChecker(hash_secret(token)), None
     if settings.dev_mode:
-        generated = "dev-" + generate_key()
+        generated = persistent_dev_token(settings.data_dir)  # the same token after a restart
         return SecretChecker(hash_secret(generated)), generated
     if token is None:
         raise ValueError("no experimenter key: set TABLETEACH_EXPERIMENTER_TOKEN (make one with `tableteach key`) "

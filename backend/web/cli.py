@@ -32,6 +32,7 @@ def cmd_serve(args: argparse.Namespace) -> None:
     from ..db.migrate import upgrade_head
     from .app import create_app
     from .limits import LimitedHttpToolsProtocol
+    from .dev_token import dev_token_path
 
     settings = _settings(args)
     app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
@@ -47,7 +48,8 @@ def cmd_serve(args: argparse.Namespace) -> None:
         lines += [f"demo study id: {study['id']}",
                   f"participant link: {base}/study/{study['id']}/join?PROLIFIC_PID=demo-participant"]
     if app.state.dev_token:
-        lines.append(f"development experimenter token (dev mode only, new on every start): {app.state.dev_token}")
+        lines.append(f"development experimenter token (dev mode only; kept in {dev_token_path(settings.data_dir)}): "
+                     f"{app.state.dev_token}")
     print("\n".join(lines), flush=True)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, access_log=False,
                 timeout_graceful_shutdown=5, http=LimitedHttpToolsProtocol)
@@ -90,7 +92,7 @@ def cmd_export(args: argparse.Namespace) -> dict:
 
     client = ExperimenterClient(args.server, token=args.token)
     try:
-        rows = client.export_all(args.study, args.out)
+        rows = client.export_all(args.study, args.out, include_pilot=args.include_pilot)
     except ApiError as exc:
         raise ValueError(f"the server refused the export: {exc}") from exc
     except httpx.HTTPError as exc:
@@ -152,7 +154,9 @@ def register(sub: argparse._SubParsersAction) -> None:
     export.add_argument("--server", required=True, help="server base URL")
     export.add_argument("--study", required=True, help="study id")
     export.add_argument("--token", required=True, help="experimenter token")
-    export.add_argument("--out", required=True, help="folder to write participants/events/beliefs/questionnaire.csv")
+    export.add_argument("--out", required=True,
+                        help="folder to write participants/events/steps/beliefs/questionnaire.csv and codebook.csv")
+    export.add_argument("--include-pilot", action="store_true", help="also pilot participants (left out by default)")
     export.set_defaults(run=cmd_export)
 
     key = sub.add_parser("key", help="generate an experimenter key (TABLETEACH_EXPERIMENTER_TOKEN) and its hash")

@@ -1,15 +1,17 @@
-"""The experimenter dashboard page (/dashboard) and its own static files (no build step, nothing from a CDN)."""
+"""The experimenter dashboard page (/dashboard), its own static files (no build step, nothing from a CDN) and the
+server's front page (/), which points participants and experimenters to the right place."""
 
 from __future__ import annotations
 
 from fastapi import APIRouter
-from fastapi.responses import FileResponse
+from fastapi.responses import FileResponse, HTMLResponse
 
 from .frontend_files import FRONTEND, allowed_file
 
 ASSETS = {
     "dashboard.js": "text/javascript",
     "dashboard-api.js": "text/javascript",
+    "dashboard-study-form.js": "text/javascript",
     "charts.js": "text/javascript",
     "dom.js": "text/javascript",
     "dashboard.css": "text/css",
@@ -36,3 +38,25 @@ def dashboard_page() -> FileResponse:
 def dashboard_asset(name: str) -> FileResponse:
     """One of the dashboard's scripts or its stylesheet."""
     return allowed_file(name, ASSETS, what="dashboard asset", headers=HEADERS)
+
+
+HOME = """<!doctype html>
+<html lang="en"><head><meta charset="utf-8"><meta name="viewport" content="width=device-width, initial-scale=1">
+<title>TableTeach study server</title><link rel="stylesheet" href="/dashboard/assets/dashboard.css"></head>
+<body><main class="home">
+<h1>TableTeach study server</h1>
+<p><strong>Taking part in a study?</strong> Please open the link you were given (for example on Prolific);
+this page has nothing to do.</p>
+<p><strong>Running a study?</strong></p>
+<ul>
+<li><a href="/dashboard">Experimenter dashboard</a>: create, pilot, open and monitor studies, download the data.</li>
+<li><a href="/docs">API documentation</a> (the REST API the dashboard and scripted teachers use).</li>
+<li><a href="/healthz">Health check</a>.</li>
+</ul>
+</main></body></html>"""
+
+
+@router.get("/", response_class=HTMLResponse)
+def home() -> HTMLResponse:
+    """The front page: where participants and experimenters should go."""
+    return HTMLResponse(HOME, headers=HEADERS)

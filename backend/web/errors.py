@@ -17,8 +17,17 @@ log = logging.getLogger(__name__)
 STATUS = {NotFound: 404, Conflict: 409, InvalidInput: 422, NotAuthenticated: 401}
 
 
-def _answer(status: int, detail: str, state: object = None, headers: dict[str, str] | None = None) -> JSONResponse:
-    return JSONResponse({"detail": detail, "state": state}, status_code=status, headers=headers)
+def _answer(status: int, detail: str, state: object = None, headers: dict[str, str] | None = None,
+            errors: list[dict[str, str]] | None = None) -> JSONResponse:
+    body: dict[str, object] = {"detail": detail, "state": state}
+    if errors is not None:
+        body["errors"] = errors
+    return JSONResponse(body, status_code=status, headers=headers)
+
+
+def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
+    return [{"field": ".".join(str(x) for x in err.get("loc", ()) if x != "body") or "request",
+             "message": str(err.get("msg", "invalid"))} for err in exc.errors()]
 
 
 def _validation_message(exc: RequestValidationError) -> str:
@@ -38,7 +47,7 @@ def install(app: FastAPI) -> None:
             return _answer(exc.status, exc.message, exc.state, {"Retry-After": str(exc.retry_after)})
         status = next((code for cls, code in STATUS.items() if isinstance(exc, cls)), 400)
         headers = {"WWW-Authenticate": "Bearer"} if status == 401 else None
-        return _answer(status, exc.message, exc.state, headers)
+        return _answer(status, exc.message, exc.state, headers, getattr(exc, "errors", None))
 
     @app.exception_handler(ProtocolError)
     async def _protocol_error(_request: Request, exc: ProtocolError) -> JSONResponse:
@@ -46,7 +55,7 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _invalid(_request: Request, exc: RequestValidationError) -> JSONResponse:
-        return _answer(422, _validation_message(exc))
+        return _answer(422, _validation_message(exc), errors=_field_errors(exc))
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(_request: Request, exc: StarletteHTTPException) -> JSONResponse:

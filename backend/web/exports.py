@@ -5,10 +5,11 @@ from __future__ import annotations
 import csv
 import io
 from collections.abc import Iterable, Iterator
-from typing import Any, Literal
+import zipfile
+from typing import Annotated, Any, Literal
 
-from fastapi import APIRouter
-from fastapi.responses import StreamingResponse
+from fastapi import APIRouter, Query
+from fastapi.responses import Response, StreamingResponse
 
 from .. import services
 from .deps import ContextDep, Experimenter
@@ -27,7 +28,10 @@ def needs_escape(value: str) -> bool:
 
 
 def cell(value: Any) -> Any:
-    """A CSV cell: text that could start a formula gets a leading apostrophe (OWASP CSV injection)."""
+    """A CSV cell: booleans as true/false; text a spreadsheet could read as a formula gets a leading apostrophe
+    (OWASP CSV injection)."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
     if isinstance(value, str) and needs_escape(value):
         return "'" + value
     return value
@@ -44,12 +48,35 @@ def csv_lines(rows: Iterable[list[Any]]) -> Iterator[str]:
         buffer.truncate(0)
 
 
+IncludePilot = Annotated[bool, Query(description="also pilot participants (left out by default)")]
+
+
+def _attachment(filename: str) -> dict[str, str]:
+    return {"Content-Disposition": f'attachment; filename="{filename}"'}
+
+
+@router.get("/{study_id}/exports/exports.zip", response_class=Response,
+            responses={200: {"content": {"application/zip": {}},
+                             "description": "every CSV, codebook.csv and study.json"}})
+def export_zip(study_id: str, ctx: ContextDep, include_pilot: IncludePilot = False) -> Response:
+    """Download exports.zip: every CSV below, codebook.csv and the study definition (study.json)."""
+    buffer = io.BytesIO()
+    with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, content in services.export_files(ctx, study_id, include_pilot=include_pilot):
+            text = content if isinstance(content, str) else "".join(csv_lines(content))
+            archive.writestr(name, text)
+    return Response(buffer.getvalue(), media_type="application/zip",
+                    headers=_attachment(f"{study_id}-exports.zip"))
+
+
 @router.get("/{study_id}/exports/{name}.csv", response_class=StreamingResponse,
             responses={200: {"content": {"text/csv": {}}, "description": "the CSV file"}})
-def export(study_id: str, name: Literal["participants", "events", "beliefs", "questionnaire"], ctx: ContextDep
-           ) -> StreamingResponse:
-    """Download participants.csv, events.csv, beliefs.csv or questionnaire.csv (columns: docs/server.md)."""
-    rows = services.export_rows(ctx, study_id, name)
-    filename = f"{study_id}-{name}.csv"
+def export(study_id: str, name: Literal["participants", "events", "steps", "beliefs", "questionnaire", "codebook"],
+           ctx: ContextDep, include_pilot: IncludePilot = False) -> StreamingResponse:
+    """Download participants, events, steps, beliefs, questionnaire or codebook .csv (columns: codebook.csv)."""
+    if name == "codebook":
+        rows = services.codebook_rows(ctx, study_id)
+    else:
+        rows = services.export_rows(ctx, study_id, name, include_pilot=include_pilot)
     return StreamingResponse(csv_lines(rows), media_type="text/csv; charset=utf-8",
-                             headers={"Content-Disposition": f'attachment; filename="{filename}"'})
+                             headers=_attachment(f"{study_id}-{name}.csv"))

@@ -20,6 +20,8 @@ ExternalId = Annotated[str | None, Query(max_length=128, pattern=r"^[A-Za-z0-9_.
 ASSETS = {
     "participant.js": "text/javascript; charset=utf-8",
     "participant-views.js": "text/javascript; charset=utf-8",
+    "participant-study-ops.js": "text/javascript; charset=utf-8",
+    "participant-study-ops.css": "text/css; charset=utf-8",
     "dom.js": "text/javascript; charset=utf-8",
     "api.js": "text/javascript; charset=utf-8",
     "style.css": "text/css; charset=utf-8",

@@ -11,7 +11,7 @@ from .. import services
 from .browser import browser_secret, remember_browser
 from .deps import ContextDep, IdempotencyKey, TokenDep
 from .schemas import (AssessmentIn, ConsentIn, JoinIn, JoinOut, ParticipantState, PlacementIn,
-                      QuestionnaireIn, StepGuard, error_responses)
+                      QuestionnaireIn, QuizIn, StepGuard, error_responses)
 
 ERRORS = error_responses(400, 401, 409, 422)
 # The endpoints are async and hand only the services call to the thread pool: a plain `def` endpoint costs
@@ -95,3 +95,15 @@ async def questionnaire(body: QuestionnaireIn, ctx: ContextDep, token: TokenDep,
                         key: IdempotencyKey = None) -> dict:
     """Answer the questionnaire; the answer's state carries the completion code and redirect URL."""
     return await run_in_threadpool(services.answer_questionnaire, ctx, token, answers=body.answers, key=key)
+
+
+@router.post("/me/quiz", response_model=ParticipantState)
+async def quiz(body: QuizIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
+    """Answer the comprehension quiz: all correct starts the first task; too many failed attempts screen out."""
+    return await run_in_threadpool(services.answer_quiz, ctx, token, answers=body.answers, key=key)
+
+
+@router.post("/me/withdraw", response_model=ParticipantState)
+async def withdraw(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
+    """Withdraw from the study (after consent): the participant's recorded data are deleted."""
+    return await run_in_threadpool(services.withdraw, ctx, token, key=key)

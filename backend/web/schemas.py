@@ -46,6 +46,10 @@ class QuestionnaireIn(Strict):
     answers: dict[str, int | str | None] = Field(max_length=100)
 
 
+class QuizIn(Strict):
+    answers: dict[str, int] = Field(max_length=20, description="quiz item id -> number of the chosen option, from 0")
+
+
 class JoinIn(Strict):
     prolific_pid: str | None = Field(None, min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
     study_id: str | None = Field(None, min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
@@ -58,7 +62,7 @@ class ParticipantState(BaseModel):
     participant_id: int
     token: str
     study_id: str
-    stage: Literal["consent", "instructions", "task", "questionnaire", "done", "withdrawn"]
+    stage: Literal["consent", "instructions", "quiz", "task", "questionnaire", "done", "withdrawn", "screened_out"]
     n_events: int
     objects: list[str]
     consent: dict[str, Any]
@@ -67,7 +71,10 @@ class ParticipantState(BaseModel):
     demonstration: dict[str, Any] | None
     execution: dict[str, Any] | None
     questionnaire: list[dict[str, Any]] | None
-    completion: dict[str, Any] | None
+    completion: dict[str, Any] | None = Field(
+        description="at the end: code, redirect_url (the study's completion URL with the code), reason for leaving "
+                    "early (declined_consent, withdrew, comprehension, timeout) and the debriefing")
+    quiz: dict[str, Any] | None = Field(None, description="at the quiz stage: items, failed_attempts, attempts_left")
     replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
 
 
@@ -88,8 +95,18 @@ class TaskIn(Strict):
 class ItemIn(Strict):
     id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
     text: str = Field(max_length=2000)
-    kind: Literal["likert5", "rating10", "text"]
+    kind: Literal["likert5", "rating10", "text", "attention"]
     required: bool = True
+    expected: int | None = Field(None, ge=1, le=5,
+                                 description="attention checks (shown as a 1-5 agreement scale): the expected answer")
+
+
+class QuizItemIn(Strict):
+    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
+    text: str = Field(min_length=1, max_length=2000)
+    options: list[str] = Field(min_length=2, max_length=10)
+    correct: int = Field(ge=0, le=9, description="index (from 0) of the correct option")
+
 
 
 class StudyIn(Strict):
@@ -109,6 +126,17 @@ class StudyIn(Strict):
     completion_url: str | None = Field(None, max_length=500, pattern=r"^https?://\S+$",
                                        description="redirect after completion; {code} is replaced")
     pilot: bool = False
+    completion_code: str | None = Field(None, min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$",
+                                        description="every participant who finishes is redirected with this code")
+    screened_out_code: str | None = Field(None, min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$",
+                                          description="for those who declined consent, failed a check or timed out")
+    task_order: Literal["fixed", "random", "balanced"] = "fixed"
+    quiz: list[QuizItemIn] = Field(default_factory=list, max_length=20)
+    quiz_max_attempts: int = Field(2, ge=1, le=10)
+    timeout_minutes: int | None = Field(None, ge=1, le=1440)
+
+
+STUDY_FIELDS = tuple(StudyIn.model_fields)
 
 
 class StudyOut(BaseModel):
@@ -129,6 +157,12 @@ class StudyOut(BaseModel):
     consent_text: str
     consent_version: str
     completion_url: str | None
+    completion_code: str | None
+    screened_out_code: str | None
+    task_order: str
+    quiz: list[dict[str, Any]]
+    quiz_max_attempts: int
+    timeout_minutes: int | None
     created_at: str | None
     updated_at: str | None
 
@@ -140,8 +174,12 @@ class ParticipantBaseOut(BaseModel):
     condition: str
     stage: str
     task_index: int
-    status: Literal["active", "idle", "done", "withdrawn"]
+    status: Literal["active", "idle", "done", "withdrawn", "screened_out"]
     pilot: bool
+    end_reason: str | None = None
+    attention_failed: bool = False
+    task_order: list[int] | None = None
+    elapsed_seconds: float | None = Field(None, description="from joining to finishing, or to now if under way")
     prolific_pid: str | None
     created_at: str | None
     last_activity_at: str | None
@@ -161,11 +199,41 @@ class BeliefOut(BaseModel):
     tasks: list[dict[str, Any]]
 
 
+class FieldErrorOut(BaseModel):
+    field: str = Field(description="the field's path, e.g. tasks.0.ground_truth")
+    message: str
+
+
 class ErrorOut(BaseModel):
     """Every error: what was wrong and what was expected; for participant conflicts, the current state."""
 
     detail: str
     state: ParticipantState | None = None
+    errors: list[FieldErrorOut] | None = Field(None, description="422: every unacceptable field at once")
+
+
+class StudyPatch(Strict):
+    """Any fields of a study to change (the others keep their values)."""
+
+    model_config = ConfigDict(extra="allow")
+
+
+class PilotResetOut(BaseModel):
+    study_id: str
+    erased: list[int]
+
+
+class ErasureOut(BaseModel):
+    participant_id: int
+    erased_by: str
+    reason: Literal["erasure", "pilot_reset"]
+    pilot: bool
+    erased_at: str | None
+
+
+class FormulaOut(BaseModel):
+    formula: str
+    description: str
 
 
 ERROR_MEANINGS = {

@@ -2,14 +2,49 @@
 
 from __future__ import annotations
 
-from fastapi import APIRouter, status
+from typing import Annotated, Any
+
+from fastapi import APIRouter, Body, Query, Response, status
+from pydantic import ValidationError
 
 from .. import services
+from ..errors import InvalidFields
 from .deps import ContextDep, Experimenter, ParticipantId
-from .schemas import BeliefOut, ParticipantRowOut, StudyIn, StudyOut, error_responses
+from .schemas import (BeliefOut, ErasureOut, FormulaOut, ParticipantRowOut, PilotResetOut, StudyIn, StudyOut,
+                      error_responses)
 
 ERRORS = error_responses(400, 401, 404, 409, 422)
 router = APIRouter(prefix="/api/v1/studies", tags=["experimenter"], dependencies=[Experimenter], responses=ERRORS)
+formulas = APIRouter(prefix="/api/v1/formulas", tags=["experimenter"], dependencies=[Experimenter],
+                     responses=error_responses(401, 422))
+StudyBody = Annotated[dict[str, Any], Body(description="a study definition: the fields of StudyIn (docs/server.md)")]
+STUDY_IN = {"requestBody": {"required": True, "content": {"application/json": {
+    "schema": {"$ref": "#/components/schemas/StudyIn"}}}}}
+
+
+def _field(loc: tuple[Any, ...]) -> str:
+    return ".".join(str(part) for part in loc) or "body"
+
+
+def validated_study(body: dict[str, Any]) -> dict[str, Any]:
+    """The study definition checked field by field; InvalidFields lists every unacceptable field at once."""
+    model = None
+    schema_errors: list[dict[str, str]] = []
+    try:
+        model = StudyIn.model_validate(body)
+    except ValidationError as exc:
+        schema_errors = [{"field": _field(e["loc"]), "message": e["msg"]} for e in exc.errors()]
+    defaults = {name: f.get_default(call_default_factory=True) for name, f in StudyIn.model_fields.items()
+                if not f.is_required()}
+    try:
+        errors = services.study_problems({**defaults, **body})  # the plainer words, where both say something
+    except Exception:  # values of the wrong type: the schema's messages name them
+        errors = []
+    seen = {e["field"] for e in errors}
+    errors += [e for e in schema_errors if not any(e["field"] == f or e["field"].startswith(f + ".") for f in seen)]
+    if errors or model is None:
+        raise InvalidFields(errors or [{"field": "body", "message": "expected a study definition"}])
+    return model.model_dump()
 
 
 @router.get("", response_model=list[StudyOut])
@@ -18,16 +53,37 @@ def list_studies(ctx: ContextDep) -> list[dict]:
     return services.list_studies(ctx)
 
 
-@router.post("", response_model=StudyOut, status_code=status.HTTP_201_CREATED)
-def create_study(body: StudyIn, ctx: ContextDep) -> dict:
-    """Create a study (status draft; open it to let participants join)."""
-    return services.create_study(ctx, body.model_dump())
+@router.post("", response_model=StudyOut, status_code=status.HTTP_201_CREATED, openapi_extra=STUDY_IN)
+def create_study(body: StudyBody, ctx: ContextDep) -> dict:
+    """Create a study (status draft; open it to let participants join). A 422 lists every bad field in errors."""
+    return services.create_study(ctx, validated_study(body))
 
 
 @router.get("/{study_id}", response_model=StudyOut)
 def get_study(study_id: str, ctx: ContextDep) -> dict:
     """One study."""
     return services.get_study(ctx, study_id)
+
+
+@router.get("/{study_id}/spec", response_model=StudyIn)
+def study_spec(study_id: str, ctx: ContextDep) -> dict:
+    """The study as the definition that would create it again (what the dashboard's edit form starts from)."""
+    return services.editable_spec(services.get_study(ctx, study_id))
+
+
+@router.patch("/{study_id}", response_model=StudyOut)
+def update_study(study_id: str, body: StudyBody, ctx: ContextDep) -> dict:
+    """Change any fields of a draft study (the others keep their values); an open or closed study only its name,
+    pilot flag, completion codes, completion URL and timeout (409 for the rest: clone it instead)."""
+    current = services.editable_spec(services.get_study(ctx, study_id))
+    merged = validated_study({**current, **body})
+    return services.update_study(ctx, study_id, {k: merged[k] for k in body})
+
+
+@router.post("/{study_id}/clone", response_model=StudyOut, status_code=status.HTTP_201_CREATED)
+def clone_study(study_id: str, ctx: ContextDep) -> dict:
+    """A draft copy of the study under a new id (its participants are not copied)."""
+    return services.clone_study(ctx, study_id)
 
 
 @router.post("/{study_id}/open", response_model=StudyOut)
@@ -42,13 +98,42 @@ def close_study(study_id: str, ctx: ContextDep) -> dict:
     return services.close_study(ctx, study_id)
 
 
+@router.post("/{study_id}/pilot/reset", response_model=PilotResetOut)
+def reset_pilot(study_id: str, ctx: ContextDep) -> dict:
+    """Erase every pilot participant of the study (each gets an audit entry); nobody else is touched."""
+    return services.reset_pilot(ctx, study_id)
+
+
 @router.get("/{study_id}/participants", response_model=list[ParticipantRowOut])
 def list_participants(study_id: str, ctx: ContextDep) -> list[dict]:
-    """Participants with stage, live status (active, idle, done, withdrawn) and last activity."""
+    """Participants with stage, live status (active, idle, done, withdrawn, screened_out) and last activity."""
     return services.list_participants(ctx, study_id)
+
+
+@router.delete("/{study_id}/participants/{participant_id}", status_code=status.HTTP_204_NO_CONTENT,
+               response_class=Response)
+def erase_participant(study_id: str, participant_id: ParticipantId,
+                      ctx: ContextDep) -> Response:
+    """Erase one participant's events, answers, beliefs and robot recordings; an audit entry (no personal data)
+    is kept. Erasing again answers 204 too."""
+    services.erase_participant(ctx, study_id, participant_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.get("/{study_id}/erasures", response_model=list[ErasureOut])
+def erasures(study_id: str, ctx: ContextDep) -> list[dict]:
+    """The study's erasure audit log: which participant number, who, when, why."""
+    return services.erasure_log(ctx, study_id)
 
 
 @router.get("/{study_id}/participants/{participant_id}/belief", response_model=BeliefOut)
 def belief(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict:
     """Per task: the learner's top formulas in plain English, entropy, similarity to the ground truth."""
     return services.belief_summary(ctx, study_id, participant_id)
+
+
+@formulas.get("/describe", response_model=FormulaOut)
+def describe_formula(formula: Annotated[str, Query(min_length=1, max_length=2000,
+                                                   description="e.g. F(bowl) & (!fork U knife)")]) -> dict:
+    """A custom task's ground-truth formula in canonical form and in plain words (422 says what is wrong)."""
+    return services.describe_formula(formula)

@@ -111,7 +111,7 @@ def test_experimenter_follows_a_session_in_the_dashboard(server_factory: Any, br
     label = {True: "acceptable", False: "unacceptable"}
     beliefs = [r for r in rows(downloaded["beliefs"]) if r["participant_id"] == str(pid)]
     assert [r["record_kind"] for r in beliefs] == ["", "demonstration", "demonstration", "query", "query"]
-    assert [r["acceptable"] for r in beliefs[3:]] == [str(v) for v in verdicts]
+    assert [r["acceptable"] for r in beliefs[3:]] == [str(v).lower() for v in verdicts]
     answers = next(a["answers"] for a in run.actions if a["kind"] == "questionnaire")
     got = {r["item_id"]: r["answer"] for r in rows(downloaded["questionnaire"]) if r["participant_id"] == str(pid)}
     assert got == {k: ("'" + v if isinstance(v, str) and v.startswith("=") else str(v)) for k, v in answers.items()}
@@ -208,11 +208,20 @@ def test_experimenter_creates_and_opens_a_study(server_factory: Any, browser_pag
     page.click("#add-item")
     page.fill("[name=item_id]", "easy")
     page.fill("[name=item_text]", "Teaching was easy.")
+    page.fill("#n_tests", "25")
     page.click("#create")
     error = page.locator("#create-message .error")
     error.wait_for()
-    assert "tasks[0].ground_truth" in error.text_content() and "spoon" in error.text_content()
+    assert "2 fields need a change" in error.text_content()
+    # Each refused field says why next to itself, both at once, in plain words.
+    assert "spoon" in page.text_content("[data-error-for='tasks.0.ground_truth']")
+    assert "0 to 20" in page.text_content("[data-error-for='n_tests']")
+    page.fill("#n_tests", "2")
     page.fill("#tasks input[name=ground_truth]", "F(bowl) & (!bowl U dinner_plate)")
+    words = page.locator(".formula-words.ok")
+    words.wait_for()
+    assert "bowl" in words.text_content() and "dinner plate" in words.text_content().replace("_", " ")
+    page.fill("#tasks input[name=task_name]", "Plate before bowl")
     page.click("#create")
     page.wait_for_selector("#open-study")
     study_id = page.evaluate("decodeURIComponent(location.hash.split('/')[2])")
@@ -224,6 +233,7 @@ def test_experimenter_creates_and_opens_a_study(server_factory: Any, browser_pag
     assert (created["name"], created["status"], created["conditions"]) == (
         "Made in the browser", "draft", ["active", "random"])
     assert created["tasks"][0]["key"] == "custom" and "(!bowl U dinner_plate)" in created["tasks"][0]["ground_truth"]
+    assert created["tasks"][0]["name"] == "Plate before bowl" and created["n_tests"] == 2
     assert created["questionnaire"] == [
         {"id": "easy", "text": "Teaching was easy.", "kind": "likert5", "required": True}]
     page.click("#open-study")

@@ -142,7 +142,7 @@ def test_a_participant_completes_an_active_session_by_clicking_in_the_3d_view(br
     assert placed == ["dinner_plate", "bowl", "dinner_plate", "small_plate"]
     kinds = [e["kind"] for e in events]
     assert kinds.count("execution_finished") == 2 and kinds.count("assessment") == 2 and kinds[-1] == "completed"
-    assert [e["acceptable"] for e in events if e["kind"] == "assessment"] == ["False", "True"]
+    assert [e["acceptable"] for e in events if e["kind"] == "assessment"] == ["false", "true"]
     # The robot's labels come from MuJoCo: every placement the participant clicked is in its slot.
     last = [e for e in events if e["kind"] == "demonstration"][-1]
     assert last["trace"] == '[[],["dinner_plate"],["dinner_plate","small_plate"]]'

@@ -7,7 +7,7 @@ from pydantic import SecretStr
 
 from tableteach.config import Settings
 from tableteach.web.app import create_app
-from tableteach.web.auth import SecretChecker, experimenter_checker, hash_secret
+from tableteach.web.auth import SecretChecker, experimenter_checker, generate_key, hash_secret
 
 from .conftest import EXPERIMENTER_TOKEN
 from .helpers import EXP, bearer, make_study, to_teaching
@@ -58,9 +58,22 @@ def test_refuses_missing_or_weak_secrets_outside_dev_mode(tmp_path) -> None:
         create_app(Settings(database_url=url))
     with pytest.raises(ValueError, match="too weak"):
         create_app(Settings(database_url=url, experimenter_token=SecretStr("changeme")))
-    checker, generated = experimenter_checker(Settings(database_url=url, dev_mode=True))
+    checker, generated = experimenter_checker(Settings(database_url=url, dev_mode=True, data_dir=tmp_path / "data"))
     assert generated is not None and generated.startswith("dev-") and checker.check(generated)
     assert not checker.check("dev-guess")
+
+
+def test_dev_mode_keeps_its_token_across_restarts_under_the_data_folder(tmp_path) -> None:
+    url = f"sqlite:///{tmp_path / 'a.db'}"
+    first = experimenter_checker(Settings(database_url=url, dev_mode=True, data_dir=tmp_path / "data"))[1]
+    again = experimenter_checker(Settings(database_url=url, dev_mode=True, data_dir=tmp_path / "data"))[1]
+    other = experimenter_checker(Settings(database_url=url, dev_mode=True, data_dir=tmp_path / "elsewhere"))[1]
+    assert first == again and first != other
+    path = tmp_path / "data" / "dev-experimenter-token"
+    assert path.read_text().strip() == first and path.stat().st_mode & 0o077 == 0
+    # Production never uses it: a configured secret wins.
+    assert experimenter_checker(Settings(database_url=url, experimenter_token=SecretStr(generate_key()),
+                                         data_dir=tmp_path / "data"))[1] is None
 
 
 def test_a_stored_hash_works_and_the_secret_itself_is_not_needed() -> None:

@@ -16,8 +16,8 @@ def test_formula_like_cells_get_an_apostrophe() -> None:
         "'=1+1", "'+1", "'-2", "'@SUM(A1)", "'\tx", "'\rx"]
     assert [cell(v) for v in [" =1+1", "\n=1+1", "\uff1d1+1", "\u3000\uff0bA1", "  @x", "\tx"]] == [
         "' =1+1", "'\n=1+1", "'\uff1d1+1", "'\u3000\uff0bA1", "'  @x", "'\tx"]
-    assert [cell(v) for v in ["F(bowl)", "(!bowl U knife)", -2, 0.5, None, True]] == [
-        "F(bowl)", "(!bowl U knife)", -2, 0.5, None, True]
+    assert [cell(v) for v in ["F(bowl)", "(!bowl U knife)", -2, 0.5, None, True, False]] == [
+        "F(bowl)", "(!bowl U knife)", -2, 0.5, None, "true", "false"]
 
 
 @given(st.lists(st.lists(st.text(max_size=12), min_size=1, max_size=4), min_size=1, max_size=6))

@@ -48,7 +48,7 @@ def _check_exports_match(run: TeacherRun, exports: dict[str, list[dict[str, str]
     assert [e["step_kind"] for e in demos] == [a["kind"] for a in taught]
     assert [(e["step_kind"], json.loads(e["robot_events"]), json.loads(e["trace"]), e["acceptable"])
             for e in assessments] == [
-        (a["kind"], a["events"], a["trace"], str(a["acceptable"])) for a in robot
+        (a["kind"], a["events"], a["trace"], {True: "true", False: "false", None: ""}[a["acceptable"]]) for a in robot
     ]
     # Robot traces are what the robot reported: for the trace robot, the labels of its placements.
     domain = get_domain("dinner")
@@ -110,12 +110,16 @@ def test_teach_and_export_commands_on_the_two_task_demo_study(tmp_path: Path) ->
         assert summary["map_formula"] == summary["final"][1]["map_formula"]
         assert len(summary["executions"]) == 12  # 3 queries + 3 tests per task
 
-        out = subprocess.run(cli + ["export", "--server", server.url, "--study", "demo", "--token", EXPERIMENTER_TOKEN,
-                                    "--out", str(tmp_path / "csv")], capture_output=True, text=True, timeout=60)
+        export = cli + ["export", "--server", server.url, "--study", "demo", "--token", EXPERIMENTER_TOKEN]
+        out = subprocess.run(export + ["--out", str(tmp_path / "csv")], capture_output=True, text=True, timeout=60)
+        assert out.returncode == 0, out.stderr
+        assert json.loads(out.stdout)["rows"]["participants"] == 0  # the demo study's participants are pilots
+        out = subprocess.run(export + ["--out", str(tmp_path / "csv"), "--include-pilot"], capture_output=True,
+                             text=True, timeout=60)
         assert out.returncode == 0, out.stderr
         assert json.loads(out.stdout)["rows"]["participants"] == 1
         assert sorted(p.name for p in (tmp_path / "csv").iterdir()) == [
-            "beliefs.csv", "events.csv", "participants.csv", "questionnaire.csv"]
+            "beliefs.csv", "codebook.csv", "events.csv", "participants.csv", "questionnaire.csv", "steps.csv"]
 
         bad = subprocess.run(cli + ["export", "--server", server.url, "--study", "demo", "--token", "wrong-token",
                                     "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=60)

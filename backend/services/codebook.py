@@ -1,0 +1,142 @@
+"""The codebook of a study's exports (one row per file and column: type, meaning, units or levels, Likert
+labels) and exports.zip (every CSV, the codebook and the study definition as JSON)."""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Iterable, Iterator
+from typing import Any
+
+from .context import Context
+from .exports import EXPORT_COLUMNS, EXPORTS, export_rows
+from .studies import get_study
+
+CODEBOOK_COLUMNS = ["file", "column", "type", "meaning", "units_or_levels", "likert_labels"]
+
+LIKERT5 = "1 = Strongly disagree; 2 = Disagree; 3 = Neither; 4 = Agree; 5 = Strongly agree"
+BOOL = "true / false"
+TIME = "ISO 8601, UTC"
+STAGES = ("consent, instructions, quiz, task, questionnaire (under way); done; withdrawn; screened_out")
+END_REASONS = ("declined_consent, withdrew (data deleted), comprehension (failed the quiz), timeout; "
+               "empty if the participant did not leave early")
+TRACE = "JSON list of states, each a sorted list of the objects on the table"
+STEP_KINDS = "practice, demonstration, query, test"
+
+# column -> (type, meaning, units or levels); a column's entry is shared by every file that has it.
+COMMON: dict[str, tuple[str, str, str]] = {
+    "participant_id": ("integer", "the participant's number in this server (not a Prolific id)", ""),
+    "study_id": ("text", "the study's id on this server", ""),
+    "condition": ("category", "the teaching protocol the participant was assigned", "active, random, batch"),
+    "task_index": ("integer", "a task's number in the study definition (study.json 'tasks'), from 0", ""),
+    "task": ("category", "the task's key in the study definition", "task1, task2, custom, none"),
+    "step_kind": ("category", "kind of teaching step", STEP_KINDS),
+    "step_index": ("integer", "the step's number within its kind in this task, from 0", ""),
+    "acceptable": ("boolean", "the participant's verdict on the robot's execution (empty: none given)", BOOL),
+    "trace": ("json", "what the table showed after each placement", TRACE),
+    "created_at": ("datetime", "when the row was recorded", TIME),
+}
+
+MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
+    "participants": {
+        "task_order": ("json", "the order in which this participant did the study's tasks (task_index values)",
+                       "JSON list of integers"),
+        "pilot": ("boolean", "a pilot participant (left out of the exports unless include_pilot=true)", BOOL),
+        "stage": ("category", "where the participant is or ended", STAGES),
+        "end_reason": ("category", "why the participant left before the end", END_REASONS),
+        "timed_out": ("boolean", "idle past the study's timeout; their data are kept", BOOL),
+        "quiz_failures": ("integer", "failed attempts at the comprehension quiz", "count"),
+        "attention_failed": ("boolean", "at least one attention check in the questionnaire was failed", BOOL),
+        "task_index": ("integer", "the task in progress or the last one (task_index in study.json)", ""),
+        "prolific_pid": ("text", "PROLIFIC_PID from the study link", ""),
+        "external_study_id": ("text", "STUDY_ID from the study link", ""),
+        "external_session_id": ("text", "SESSION_ID from the study link", ""),
+        "consent_at": ("datetime", "when consent was given", TIME),
+        "consent_version": ("text", "version of the consent text agreed to", ""),
+        "completion_code": ("text", "the code the participant was given at the end", ""),
+        "created_at": ("datetime", "when the participant joined", TIME),
+        "last_activity_at": ("datetime", "the participant's last request", TIME),
+        "finished_at": ("datetime", "when the participant finished or left", TIME),
+        "total_seconds": ("number", "time from joining to finishing (empty unless done)", "seconds"),
+        "n_events": ("integer", "events recorded for the participant", "count"),
+        "seed": ("integer", "the participant's session seed (task i uses seed + i)", ""),
+    },
+    "events": {
+        "seq": ("integer", "the event's number in the participant's log, from 1", ""),
+        "kind": ("category", "what happened", "joined, consent, instructions_read, quiz, task_started, place, "
+                 "demonstration, execution_started, execution_finished, assessment, task_finished, questionnaire, "
+                 "completed, withdrawn, screened_out"),
+        "object": ("category", "the object placed (place events)", "dinner_plate, small_plate, bowl, knife, fork"),
+        "labels": ("json", "the objects on the table after a placement", "JSON list"),
+        "robot_events": ("json", "the objects the robot placed, in order", "JSON list"),
+        "p_acceptable": ("number", "the learner's probability that the robot's execution was acceptable",
+                         "probability 0-1"),
+        "client_event_id": ("text", "the request's Idempotency-Key", ""),
+        "app_version": ("text", "the server version that recorded the event", ""),
+        "payload": ("json", "the whole event", "JSON object"),
+    },
+    "steps": {
+        "task_position": ("integer", "the task's place in this participant's order, from 0", ""),
+        "shown_at": ("datetime", "when the step was shown: its task started or the previous step was answered",
+                     TIME),
+        "answered_at": ("datetime", "when the step was answered (demonstration finished or verdict given)", TIME),
+        "duration_seconds": ("number", "answered_at minus shown_at", "seconds"),
+        "n_objects": ("integer", "objects placed in the step", "count"),
+    },
+    "beliefs": {
+        "step": ("integer", "learning step: 0 is the prior, k the belief after the k-th demonstration or assessed "
+                 "query", ""),
+        "record_kind": ("category", "the step's observation", "empty (prior), practice, demonstration, query"),
+        "entropy": ("number", "entropy of the belief over canonical clause sets", "nats"),
+        "map_formula": ("text", "the most probable task formula", "LTL over the template clauses"),
+        "map_description": ("text", "the most probable formula in plain English", ""),
+        "similarity": ("number", "expected similarity of the belief to the ground truth E_P[L(phi, phi*)] "
+                       "(empty when the truth is unknown)", "0-1"),
+        "map_similarity": ("number", "similarity of the most probable formula to the ground truth", "0-1"),
+        **{f"top{i}_formula": ("text", f"the {i}. most probable formula", "") for i in range(1, 6)},
+        **{f"top{i}_p": ("number", f"probability of the {i}. most probable formula", "probability 0-1")
+           for i in range(1, 6)},
+    },
+    "questionnaire": {
+        "item_id": ("text", "the questionnaire item's id (rows below describe each item)", ""),
+        "item_kind": ("category", "the item's answer scale", "likert5, rating10, text, attention"),
+        "item_text": ("text", "the item's wording", ""),
+        "answer": ("mixed", "the answer: a whole number on the item's scale, or text", "see the item rows"),
+        "attention_check": ("boolean", "the item is an attention check", BOOL),
+        "attention_expected": ("integer", "the answer an attentive participant gives", "1-5"),
+        "attention_passed": ("boolean", "the answer was the expected one (empty for other items)", BOOL),
+        "answered_at": ("datetime", "when the questionnaire was submitted", TIME),
+    },
+}
+
+
+def _item_rows(questionnaire: list[dict[str, Any]]) -> Iterator[list[Any]]:
+    for item in questionnaire:
+        kind = item["kind"]
+        levels = {"likert5": "1-5", "rating10": "1-10", "text": "free text",
+                  "attention": f"1-5; expected {item.get('expected')}"}[kind]
+        labels = LIKERT5 if kind in ("likert5", "attention") else ("1 and 10 as the item text says"
+                                                                    if kind == "rating10" else "")
+        kind_name = "attention check" if kind == "attention" else "questionnaire item"
+        yield ["questionnaire.csv", f"answer where item_id = {item['id']}", "text" if kind == "text" else "integer",
+               f"{kind_name}: {item['text']}", levels, labels]
+
+
+def codebook_rows(ctx: Context, study_id: str) -> list[list[Any]]:
+    """The codebook of a study's exports, header first (NotFound for an unknown study)."""
+    study = get_study(ctx, study_id)
+    rows = [CODEBOOK_COLUMNS]
+    for name in EXPORTS:
+        for column in EXPORT_COLUMNS[name]:
+            kind, meaning, units = MEANINGS[name].get(column) or COMMON[column]
+            rows.append([f"{name}.csv", column, kind, meaning, units, ""])
+    return rows + list(_item_rows(study["questionnaire"]))
+
+
+def export_files(ctx: Context, study_id: str, *, include_pilot: bool = False
+                 ) -> Iterator[tuple[str, Iterable[list[Any]] | str]]:
+    """Every file of exports.zip: (name, rows) for the CSVs and the codebook, (name, text) for study.json."""
+    study = get_study(ctx, study_id)
+    for name in EXPORTS:
+        yield f"{name}.csv", export_rows(ctx, study_id, name, include_pilot=include_pilot)
+    yield "codebook.csv", codebook_rows(ctx, study_id)
+    yield "study.json", json.dumps(study, indent=2, ensure_ascii=False)

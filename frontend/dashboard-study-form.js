@@ -1,0 +1,238 @@
+// The study form of the dashboard: a new study, or an edit of one (every field while it is a draft; only the
+// fields that participants do not notice once it is open). Every field the server refuses is reported next to
+// the field, all at once, in the server's words; a custom task's formula is shown in words as it is typed.
+
+import * as api from "./dashboard-api.js";
+import { h } from "./dom.js";
+
+// What can change once participants can join (services/studies.py LIVE_FIELDS).
+export const LIVE_FIELDS = ["name", "pilot", "completion_code", "screened_out_code", "completion_url", "timeout_minutes"];
+const TASK_HINT = "e.g. F(bowl) & (!fork U knife)";
+
+function removeButton() {
+  return h("button", { type: "button", class: "ghost", onclick: (e) => e.target.closest(".row, .block").remove() }, "Remove");
+}
+
+/** A field with its label and a slot for the server's message about it (data-field = the API's path). */
+function field(label, input, path, { cls = "" } = {}) {
+  input.dataset.field = path;
+  return h("label", { class: `field ${cls}` }, label, input, h("span", { class: "field-error", "data-error-for": path }));
+}
+
+function optional(value) {
+  const text = String(value ?? "").trim();
+  return text === "" ? null : text;
+}
+
+export function studyFormView({ choices, study = null, onSaved }) {
+  const d = study ?? choices.defaults;
+  const editing = study !== null;
+  const frozen = editing && study.status !== "draft";
+  const select = (name, options, value) => h("select", { name, id: name },
+    options.map((o) => h("option", { value: o, selected: o === value }, o)));
+  const number = (name, label, min, max) => field(label,
+    h("input", { type: "number", name, id: name, min, max, step: 1, value: d[name] ?? "" }), name);
+
+  // ---- tasks
+  const tasks = h("div", { class: "rows", id: "tasks" });
+  const addTask = (task = { key: "task1" }) => {
+    const i = tasks.children.length;
+    const keySelect = select("task_key", choices.taskKeys, task.key);
+    const name = h("input", { name: "task_name", value: task.key === "custom" ? task.name ?? "" : "", placeholder: "Task name shown to participants" });
+    const instructions = h("textarea", { name: "task_instructions", rows: 2, placeholder: "Instructions (empty: the formula in words)" });
+    instructions.value = task.key === "custom" ? task.instructions ?? "" : "";
+    const truth = h("input", { name: "ground_truth", value: task.key === "custom" ? task.ground_truth ?? "" : "", placeholder: TASK_HINT, class: "grow" });
+    const words = h("p", { class: "formula-words small", "aria-live": "polite" });
+    const custom = h("div", { class: "custom-task" },
+      field("Name", name, `tasks.${i}.name`), field("Ground truth (LTL formula)", truth, `tasks.${i}.ground_truth`, { cls: "grow" }),
+      words, field("Instructions", instructions, `tasks.${i}.instructions`, { cls: "wide" }));
+    let timer = null;
+    const describe = () => {
+      clearTimeout(timer);
+      const text = truth.value.trim();
+      if (!text) { words.textContent = ""; return; }
+      timer = setTimeout(async () => {
+        try {
+          const answer = await api.describeFormula(text);
+          words.className = "formula-words small ok";
+          words.textContent = `In words: ${answer.description}`;
+        } catch (error) {
+          words.className = "formula-words small bad";
+          words.textContent = error.detail?.replace(/^ground_truth: /, "") ?? String(error);
+        }
+      }, 250);
+    };
+    truth.addEventListener("input", describe);
+    const showCustom = () => { custom.hidden = keySelect.value !== "custom"; };
+    keySelect.addEventListener("change", showCustom);
+    keySelect.dataset.field = `tasks.${i}.key`;
+    tasks.append(h("div", { class: "block task-row" },
+      h("div", { class: "row" }, h("span", { class: "muted" }, `Task ${i + 1}`), keySelect, removeButton()),
+      h("span", { class: "field-error", "data-error-for": `tasks.${i}` }), custom));
+    showCustom();
+    describe();
+  };
+  (study?.tasks ?? [{ key: "task1" }]).forEach(addTask);
+
+  // ---- comprehension quiz
+  const quiz = h("div", { class: "rows", id: "quiz" });
+  const addQuiz = (item = { id: "", text: "", options: ["", ""], correct: 0 }) => {
+    const i = quiz.children.length;
+    const options = h("textarea", { name: "quiz_options", rows: 2, placeholder: "one answer option per line" });
+    options.value = item.options.join("\n");
+    quiz.append(h("div", { class: "block quiz-row" },
+      h("div", { class: "row" },
+        field("Id", h("input", { name: "quiz_id", value: item.id, size: 10 }), `quiz.${i}.id`),
+        field("Question", h("input", { name: "quiz_text", value: item.text }), `quiz.${i}.text`, { cls: "grow" }),
+        removeButton()),
+      h("div", { class: "row" },
+        field("Options", options, `quiz.${i}.options`, { cls: "grow" }),
+        field("Correct option (1 = first)", h("input", { type: "number", name: "quiz_correct", min: 1, max: 10,
+          value: item.correct + 1 }), `quiz.${i}.correct`))));
+  };
+  (study?.quiz ?? []).forEach(addQuiz);
+
+  // ---- questionnaire
+  const items = h("div", { class: "rows", id: "items" });
+  const addItem = (item = { id: "", text: "", kind: choices.itemKinds[0], required: true }) => {
+    const i = items.children.length;
+    const kind = select("item_kind", choices.itemKinds, item.kind);
+    const expected = h("input", { type: "number", name: "item_expected", min: 1, max: 5, value: item.expected ?? "", size: 3 });
+    const expectedField = field("Expected answer (1-5)", expected, `questionnaire.${i}.expected`);
+    const sync = () => { expectedField.hidden = kind.value !== "attention"; };
+    kind.addEventListener("change", sync);
+    kind.dataset.field = `questionnaire.${i}.kind`;
+    items.append(h("div", { class: "row item-row" },
+      field("Id", h("input", { name: "item_id", value: item.id, placeholder: "e.g. learned", size: 12 }), `questionnaire.${i}.id`),
+      field("Question", h("input", { name: "item_text", value: item.text, placeholder: "question text" }), `questionnaire.${i}.text`, { cls: "grow" }),
+      kind, expectedField,
+      h("label", { class: "inline" }, h("input", { type: "checkbox", name: "item_required", checked: item.required !== false }), "required"),
+      removeButton()));
+    sync();
+  };
+  (study?.questionnaire ?? []).forEach(addItem);
+
+  const message = h("div", { id: "create-message" });
+  const checkbox = (name, checked) => h("input", { type: "checkbox", name, id: name, checked: Boolean(checked) });
+
+  const form = h("form", { class: "card form", id: "new-study-form", novalidate: true });
+  const collect = () => {
+    const f = new FormData(form);
+    const int = (name) => (optional(f.get(name)) === null ? null : Number(f.get(name)));
+    return {
+      name: optional(f.get("name")) ?? (editing ? study.name : undefined),
+      tasks: [...tasks.querySelectorAll(".task-row")].map((row) => {
+        const key = row.querySelector("[name=task_key]").value;
+        if (key !== "custom") return { key };
+        return { key, name: optional(row.querySelector("[name=task_name]").value),
+          instructions: optional(row.querySelector("[name=task_instructions]").value),
+          ground_truth: optional(row.querySelector("[name=ground_truth]").value) };
+      }),
+      conditions: choices.conditions.filter((c) => f.get(`condition_${c}`)),
+      assignment: f.get("assignment"), task_order: f.get("task_order"),
+      n_practice: int("n_practice"), n_demonstrations: int("n_demonstrations"),
+      n_queries: int("n_queries"), n_tests: int("n_tests"),
+      prior: f.get("prior"), criterion: f.get("criterion"),
+      quiz: [...quiz.querySelectorAll(".quiz-row")].map((row) => ({
+        id: row.querySelector("[name=quiz_id]").value.trim(), text: row.querySelector("[name=quiz_text]").value.trim(),
+        options: row.querySelector("[name=quiz_options]").value.split("\n").map((o) => o.trim()).filter(Boolean),
+        correct: Number(row.querySelector("[name=quiz_correct]").value) - 1,
+      })),
+      quiz_max_attempts: int("quiz_max_attempts"),
+      questionnaire: [...items.querySelectorAll(".item-row")].map((row) => {
+        const item = { id: row.querySelector("[name=item_id]").value.trim(), text: row.querySelector("[name=item_text]").value,
+          kind: row.querySelector("[name=item_kind]").value, required: row.querySelector("[name=item_required]").checked };
+        if (item.kind === "attention") item.expected = Number(row.querySelector("[name=item_expected]").value) || null;
+        return item;
+      }),
+      consent_text: optional(f.get("consent_text")), consent_version: optional(f.get("consent_version")),
+      completion_url: optional(f.get("completion_url")), completion_code: optional(f.get("completion_code")),
+      screened_out_code: optional(f.get("screened_out_code")), timeout_minutes: int("timeout_minutes"),
+      pilot: Boolean(f.get("pilot")),
+    };
+  };
+
+  const showErrors = (error) => {
+    for (const slot of form.querySelectorAll(".field-error")) slot.textContent = "";
+    for (const input of form.querySelectorAll(".invalid")) input.classList.remove("invalid");
+    const unplaced = [];
+    for (const e of error.errors ?? []) {
+      // The closest slot: tasks.0.ground_truth, else tasks.0, else the top of the form.
+      const parts = e.field.split(".");
+      let slot = null;
+      for (let n = parts.length; n > 0 && !slot; n--) {
+        slot = form.querySelector(`[data-error-for="${CSS.escape(parts.slice(0, n).join("."))}"]`);
+      }
+      if (slot) {
+        slot.textContent = slot.textContent ? `${slot.textContent}; ${e.message}` : e.message;
+        slot.previousElementSibling?.classList.add("invalid");
+      } else unplaced.push(`${e.field}: ${e.message}`);
+    }
+    const count = error.errors?.length ?? 0;
+    message.replaceChildren(h("div", { class: "error", role: "alert" },
+      count ? `${count} field${count > 1 ? "s need" : " needs"} a change: see the messages in red above.` : error.detail,
+      unplaced.length ? h("ul", {}, unplaced.map((u) => h("li", {}, u))) : null));
+    form.querySelector(".invalid")?.focus();
+  };
+
+  form.addEventListener("submit", async (event) => {
+    event.preventDefault();
+    let spec = collect();
+    if (frozen) spec = Object.fromEntries(LIVE_FIELDS.map((k) => [k, spec[k]]));
+    message.replaceChildren(h("p", { class: "muted" }, editing ? "Saving…" : "Creating…"));
+    try {
+      const saved = editing ? await api.updateStudy(study.id, spec) : await api.createStudy(spec);
+      onSaved(saved);
+    } catch (error) {
+      if (!(error instanceof api.ApiError)) throw error;
+      showErrors(error);
+    }
+  });
+
+  const section = (title, ...children) => h("fieldset", { "data-live": "no" }, h("legend", {}, title), ...children);
+  form.append(...[
+    h("h1", {}, editing ? `Edit ${study.name}` : "New study"),
+    frozen ? h("p", { class: "note" }, `This study is ${study.status}: only its name, pilot flag, completion codes, `
+      + "redirect and timeout can change. Clone it to change the rest.") : null,
+    field("Name", h("input", { name: "name", id: "name", value: editing ? study.name : "", placeholder: choices.defaults.name }), "name", { cls: "grow" }),
+    section("Tasks", tasks,
+      h("button", { type: "button", class: "ghost", id: "add-task", onclick: () => addTask({ key: "task2" }) }, "Add a task"),
+      field("Task order", select("task_order", choices.taskOrders, d.task_order ?? "fixed"), "task_order")),
+    section("Conditions (protocols) and assignment",
+      h("div", { class: "row" }, choices.conditions.map((c) => h("label", { class: "inline" },
+        checkbox(`condition_${c}`, d.conditions.includes(c)), c)),
+      field("Assignment", select("assignment", choices.assignments, d.assignment), "assignment")),
+      h("span", { class: "field-error", "data-error-for": "conditions" })),
+    section("Counts per task",
+      h("div", { class: "row" }, number("n_practice", "Practice (first task only)", 0, 20),
+        number("n_demonstrations", "Demonstrations", 0, 20), number("n_queries", "Queries", 0, 20),
+        number("n_tests", "Tests", 0, 20))),
+    section("Learner",
+      h("div", { class: "row" }, field("Prior", select("prior", choices.priors, d.prior), "prior"),
+        field("Planning criterion", select("criterion", choices.criteria, d.criterion), "criterion"))),
+    section("Comprehension quiz (after the instructions)", quiz,
+      h("div", { class: "row" },
+        h("button", { type: "button", class: "ghost", id: "add-quiz", onclick: () => addQuiz() }, "Add a question"),
+        number("quiz_max_attempts", "Attempts before screening out", 1, 10))),
+    section("Questionnaire (an attention check is shown as an agreement item)", items,
+      h("button", { type: "button", class: "ghost", id: "add-item", onclick: () => addItem() }, "Add an item")),
+    section("Consent",
+      field("Consent text (empty: the default text, which explains withdrawal)", h("textarea", { name: "consent_text", rows: 3 }), "consent_text", { cls: "wide" }),
+      field("Consent version", h("input", { name: "consent_version", value: editing ? study.consent_version : "", placeholder: "1" }), "consent_version")),
+    h("fieldset", { "data-live": "yes" }, h("legend", {}, "Completion on Prolific"),
+      field("Completion redirect ({code} is replaced)", h("input", { name: "completion_url", id: "completion_url",
+        value: study?.completion_url ?? "", placeholder: "https://app.prolific.com/submissions/complete?cc={code}" }), "completion_url", { cls: "wide" }),
+      h("div", { class: "row" },
+        field("Completion code (from Prolific)", h("input", { name: "completion_code", id: "completion_code", value: study?.completion_code ?? "" }), "completion_code"),
+        field("Screened-out code", h("input", { name: "screened_out_code", id: "screened_out_code", value: study?.screened_out_code ?? "" }), "screened_out_code"),
+        field("Time-out after (minutes idle, empty: never)", h("input", { type: "number", name: "timeout_minutes", id: "timeout_minutes", min: 1, max: 1440, value: study?.timeout_minutes ?? "" }), "timeout_minutes")),
+      h("label", { class: "inline" }, checkbox("pilot", d.pilot), "Pilot: participants who join now are flagged as pilots")),
+    h("div", { class: "row" }, h("button", { type: "submit", class: "primary", id: "create" }, editing ? "Save changes" : "Create study"),
+      h("a", { href: editing ? `#/study/${encodeURIComponent(study.id)}` : "#/", class: "button ghost" }, "Cancel")),
+    message].filter(Boolean));
+  if (editing) form.querySelector("[name=consent_text]").value = study.consent_text;
+  if (frozen) {
+    for (const set of form.querySelectorAll("fieldset[data-live=no]")) set.disabled = true;
+  }
+  return form;
+}

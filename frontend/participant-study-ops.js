@@ -1,0 +1,101 @@
+// The participant page's study-operations screens, kept apart from participant-views.js: the comprehension
+// quiz, the "Withdraw" link (on every page after consent, with a confirmation) and the pages shown when a
+// participant leaves early (declined consent, withdrew, screened out), with the study's redirect.
+// Functions from (state, handlers) to DOM nodes; participant.js owns the state and the calls.
+
+import { h } from "./dom.js";
+
+const REASONS = {
+  declined_consent: ["You chose not to take part", "Nothing more will be recorded."],
+  withdrew: ["You have withdrawn from the study",
+    "Your recorded actions and answers have been deleted. If you joined through Prolific, please return the study there."],
+  comprehension: ["Thank you for your interest",
+    "Some answers about how the study works were not right, so the study ends here for you."],
+  timeout: ["This session has ended", "You were away longer than this study allows, so it has ended for you."],
+};
+
+/** Load this module's style sheet once (the page's policy allows style sheets from this server only). */
+export function installStyles(assetUrl) {
+  if (document.getElementById("study-ops-css")) return;
+  document.head.append(h("link", { rel: "stylesheet", id: "study-ops-css", href: assetUrl("participant-study-ops.css") }));
+}
+
+function heading(text) {
+  return h("h1", { tabindex: "-1", class: "focus-target" }, text);
+}
+
+/** The comprehension quiz: one group of choices per question; all must be answered. */
+export function quizView(state, { onQuiz, pending }) {
+  const { items, failed_attempts: failed, attempts_left: left } = state.quiz;
+  const form = h("form", { class: "questionnaire quiz", novalidate: true },
+    items.map((item, i) => h("fieldset", { class: "item" },
+      h("legend", {}, `${i + 1}. ${item.text}`),
+      h("div", { class: "choices" }, item.options.map((option, j) =>
+        h("label", {}, h("input", { type: "radio", name: `quiz-${item.id}`, value: String(j), required: true }),
+          h("span", {}, option)))))),
+    h("p", { class: "error", id: "quiz-error", role: "alert" }),
+    h("div", { class: "buttons" }, h("button", { class: "primary", type: "submit", disabled: pending }, "Check my answers")));
+  form.addEventListener("submit", (event) => {
+    event.preventDefault();
+    const answers = {};
+    const missing = [];
+    items.forEach((item, i) => {
+      const value = form.elements[`quiz-${item.id}`].value;
+      if (value === "") missing.push(i + 1);
+      else answers[item.id] = Number(value);
+    });
+    if (missing.length) {
+      form.querySelector("#quiz-error").textContent = `Please answer question ${missing.join(", ")}.`;
+      return;
+    }
+    onQuiz(answers);
+  });
+  return h("section", { class: "card narrow" },
+    heading("A few questions before you start"),
+    h("p", {}, "Please check that the instructions were clear."),
+    failed ? h("p", { class: "notice", id: "quiz-retry" }, "Some answers were not right. Please read the questions again. ",
+      left === 1 ? "This is your last try." : `You have ${left} tries left.`) : null,
+    form);
+}
+
+/** The page after leaving early: why, and the way back to Prolific when the study set one. */
+export function endedView(state, { redirectSeconds }) {
+  const completion = state.completion ?? {};
+  const [title, text] = REASONS[completion.reason] ?? REASONS.declined_consent;
+  const url = completion.redirect_url;
+  return h("section", { class: "card narrow", id: "ended" },
+    heading(title),
+    h("p", {}, text),
+    completion.code ? h("p", {}, "Your code: ", h("span", { class: "code", id: "completion-code" }, completion.code)) : null,
+    url ? h("p", {}, `You will be taken back in ${redirectSeconds} seconds. `,
+      h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
+      : h("p", {}, "You can close this page now."));
+}
+
+/** Whether the page offers withdrawal now: after consent, until the participant has left. */
+export function canWithdraw(state) {
+  return Boolean(state?.consent?.given_at) && !["withdrawn", "screened_out"].includes(state.stage);
+}
+
+/** The "Withdraw" link in the page's top bar, with a confirmation dialog; hidden where it does not apply. */
+export function syncWithdrawLink(state, { onWithdraw, pending }) {
+  const bar = document.querySelector(".topbar");
+  if (!bar) return;
+  let link = document.getElementById("withdraw-link");
+  if (!link) {
+    const dialog = h("dialog", { id: "withdraw-dialog" },
+      h("h2", {}, "Withdraw from the study?"),
+      h("p", {}, "If you withdraw, everything recorded about your session (your actions and answers) is deleted, and ",
+        "you cannot continue. You do not have to give a reason."),
+      h("div", { class: "buttons" },
+        h("button", { id: "withdraw-confirm", class: "danger", onclick: () => { dialog.close(); onWithdraw(); } },
+          "Yes, withdraw and delete my data"),
+        h("button", { id: "withdraw-cancel", class: "primary", onclick: () => dialog.close() }, "No, continue the study")));
+    link = h("button", { id: "withdraw-link", type: "button", class: "withdraw-link",
+      onclick: () => (dialog.showModal ? dialog.showModal() : dialog.setAttribute("open", "")) }, "Withdraw");
+    bar.append(link);
+    document.body.append(dialog);
+  }
+  link.hidden = !canWithdraw(state);
+  link.disabled = Boolean(pending);
+}
