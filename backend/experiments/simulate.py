@@ -54,19 +54,20 @@ def draw_truth(settings: ExperimentSettings, space: HypothesisSpace, rng: np.ran
     return sample_ground_truth(space, rng)
 
 
-def _step_result(kind: str, belief: Belief, truth: int, seconds: float) -> StepResult:
+def _step_result(kind: str, belief: Belief, truth: int, seconds: float, metric: str) -> StepResult:
     """A step's metrics against the run's ground truth."""
     return StepResult(
         kind=kind,
         entropy=belief.entropy + 0.0,  # + 0.0 turns -0.0 into 0.0
-        similarity=belief.similarity(truth),
-        map_similarity=belief.map_similarity(truth),
+        similarity=belief.similarity(truth, metric),
+        map_similarity=belief.map_similarity(truth, metric),
         map_formula=belief.space.domain.clause_space.text_of(belief.map_mask),
         seconds=seconds,
     )
 
 
 def _protocol_steps(
+    settings: ExperimentSettings,
     protocol: str,
     belief: Belief,
     teacher: SimulatedTeacher,
@@ -83,10 +84,11 @@ def _protocol_steps(
             demo: Execution = teacher.demonstrate(teacher_rng)
             learner_started = time.perf_counter()
             belief = belief.observe(demo.trace, True)
-            out.append(_step_result("demonstration", belief, truth, time.perf_counter() - learner_started))
+            seconds = time.perf_counter() - learner_started
+            out.append(_step_result("demonstration", belief, truth, seconds, settings.similarity))
             continue
         if protocol == "active":
-            execution, _ = active_query(belief, learner_rng)
+            execution, _ = active_query(belief, learner_rng, settings.query_ties)
         else:
             execution, _ = random_query(belief, learner_rng)
         chosen = time.perf_counter()
@@ -94,7 +96,7 @@ def _protocol_steps(
         updating = time.perf_counter()
         belief = belief.observe(execution.trace, verdict)
         seconds = (chosen - started) + (time.perf_counter() - updating)
-        out.append(_step_result("query", belief, truth, seconds))
+        out.append(_step_result("query", belief, truth, seconds, settings.similarity))
     return out
 
 
@@ -109,12 +111,13 @@ def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
 
     started = time.perf_counter()
     belief = Belief.prior(space)
-    shared = [_step_result("prior", belief, truth, time.perf_counter() - started)]
+    shared = [_step_result("prior", belief, truth, time.perf_counter() - started, settings.similarity)]
     for _ in range(settings.n_demonstrations):
         demo = teacher.demonstrate(demo_rng)
         started = time.perf_counter()
         belief = belief.observe(demo.trace, True)
-        shared.append(_step_result("demonstration", belief, truth, time.perf_counter() - started))
+        seconds = time.perf_counter() - started
+        shared.append(_step_result("demonstration", belief, truth, seconds, settings.similarity))
 
     truth_text = domain.clause_space.text_of(truth)
     rows: list[list[Any]] = []
@@ -124,7 +127,7 @@ def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
         # query positions in both; Batch's teacher uses the stream for its extra demonstrations.
         teacher_rng = np.random.default_rng(streams[3 + k] if protocol == "batch" else streams[2])
         steps = shared + _protocol_steps(
-            protocol, belief, teacher, settings.max_n_query, learner_rng, teacher_rng, truth
+            settings, protocol, belief, teacher, settings.max_n_query, learner_rng, teacher_rng, truth
         )
         for n_query in settings.n_query:
             for n_executions, step in enumerate(steps[: settings.n_demonstrations + n_query + 1]):
