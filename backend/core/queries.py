@@ -17,7 +17,7 @@ import numpy as np
 from .belief import Belief
 from .domain import STOP, Domain
 from .executions import execution_graph
-from .puns import TIE_TOLERANCE, solve
+from .puns import TIE_TOLERANCE, node_acceptance, solve
 
 QUERY_STRATEGIES = ("active", "random")
 QUERY_TIES = ("uniform", "shortest")
@@ -69,7 +69,7 @@ def active_query(
         raise ValueError(f"unknown query tie-breaking {ties!r}; expected one of {', '.join(QUERY_TIES)}")
     rng = rng or np.random.default_rng(0)
     graph = execution_graph(belief.space.domain)
-    p_accept = belief.space.weighted_acceptance(belief.probs, graph.sat)
+    p_accept = node_acceptance(belief)
     score = np.abs(2.0 * p_accept - 1.0)
     tied = score <= score.min() + TIE_TOLERANCE
     if ties == "shortest":

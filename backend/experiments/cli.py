@@ -44,6 +44,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "or shortest first")
     p.add_argument("--noise", type=float, default=0.0,
                    help="probability that the teacher flips an assessment (default 0)")
+    p.add_argument("--test-success", action="store_true",
+                   help="also record whether the robot's test execution (the min-regret plan) after each "
+                        "n_query's final step satisfies the truth (slower)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     p.add_argument("--dask", metavar="ADDRESS", default=None,
                    help="run on an existing Dask cluster, e.g. tcp://scheduler:8786, instead of locally")
@@ -64,6 +67,7 @@ def settings_from_args(args: argparse.Namespace) -> ExperimentSettings:
         noise=args.noise,
         similarity=args.similarity,
         query_ties=args.query_ties,
+        test_success=args.test_success,
     )
 
 

@@ -41,6 +41,7 @@ class ExperimentSettings:
     noise: float = 0.0
     similarity: str = DEFAULT_METRIC
     query_ties: str = DEFAULT_QUERY_TIES
+    test_success: bool = False
     n_demonstrations: int = field(default=N_DEMONSTRATIONS)
 
     def __post_init__(self) -> None:
@@ -72,6 +73,8 @@ class ExperimentSettings:
             )
         if self.query_ties not in QUERY_TIES:
             raise ValueError(f"unknown query tie-breaking {self.query_ties!r}; expected one of {', '.join(QUERY_TIES)}")
+        if not isinstance(self.test_success, bool):
+            raise ValueError(f"test_success must be true or false, got {self.test_success!r}")
         if isinstance(self.noise, bool) or not isinstance(self.noise, (int, float)) or not 0.0 <= self.noise <= 1.0:
             raise ValueError(f"noise must be a probability in [0, 1], got {self.noise!r}")
 
