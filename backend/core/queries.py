@@ -4,7 +4,10 @@ Active query: among every reachable end of an execution, the one whose probabili
 acceptable is closest to 1/2 (min-regret reward closest to 0). Ties are the rule (tens to
 hundreds of equally uncertain executions): "uniform" (default, as the authors' softmax over equal
 values) draws one of them with the seeded rng; "shortest" keeps only the shortest tied ones
-first. The robot then plans a path to it. Random query: a uniformly random action
+first; "stepwise" walks from the start choosing uniformly at each step among the actions (stop
+included) that can still reach a tied execution, as a greedy policy over equal Q-values would
+(long executions with many orderings get less weight than under "uniform"). The robot then
+plans a path to it. Random query: a uniformly random action
 (stop included) each step until the execution ends.
 """
 
@@ -17,10 +20,10 @@ import numpy as np
 from .belief import Belief
 from .domain import STOP, Domain
 from .executions import execution_graph
-from .puns import TIE_TOLERANCE, node_acceptance, solve
+from .puns import TIE_TOLERANCE, backward_induction, node_acceptance, solve
 
 QUERY_STRATEGIES = ("active", "random")
-QUERY_TIES = ("uniform", "shortest")
+QUERY_TIES = ("uniform", "shortest", "stepwise")
 DEFAULT_QUERY_TIES = "uniform"
 
 
@@ -71,6 +74,13 @@ def active_query(
     graph = execution_graph(belief.space.domain)
     p_accept = node_acceptance(belief)
     score = np.abs(2.0 * p_accept - 1.0)
+    if ties == "stepwise":
+        policy = backward_induction(graph, -score, rng=rng, prefer_short=False)
+        node = 0
+        while policy.action[node] >= 0:
+            node = int(graph.child[node, policy.action[node]])
+        execution = rollout(belief.space.domain, graph.events[node], rng)
+        return execution, float(p_accept[node])
     tied = score <= score.min() + TIE_TOLERANCE
     if ties == "shortest":
         tied &= graph.depth == graph.depth[tied].min()
