@@ -6,24 +6,28 @@ hundreds of equally uncertain executions): "uniform" (default, as the authors' s
 values) draws one of them with the seeded rng; "shortest" keeps only the shortest tied ones
 first; "stepwise" walks from the start choosing uniformly at each step among the actions (stop
 included) that can still reach a tied execution, as a greedy policy over equal Q-values would
-(long executions with many orderings get less weight than under "uniform"). The robot then
-plans a path to it. Random query: a uniformly random action
+(long executions with many orderings get less weight than under "uniform"); "uniform-executions"
+draws a tied execution summary with probability proportional to the number of move sequences it
+summarises (synthetic: the orders in which its threats were visited among the waypoints; dinner:
+always 1, the same as "uniform"). The robot then plans a path to it. Random query: a uniformly random action
 (stop included) each step until the execution ends.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from .belief import Belief
 from .domain import STOP, Domain
-from .executions import execution_graph
+from .executions import ExecutionGraph, execution_graph
 from .puns import TIE_TOLERANCE, backward_induction, node_acceptance, solve
 
 QUERY_STRATEGIES = ("active", "random")
-QUERY_TIES = ("uniform", "shortest", "stepwise")
+QUERY_TIES = ("uniform", "shortest", "stepwise", "uniform-executions")
 DEFAULT_QUERY_TIES = "uniform"
 
 
@@ -85,9 +89,20 @@ def active_query(
     if ties == "shortest":
         tied &= graph.depth == graph.depth[tied].min()
     candidates = np.flatnonzero(tied)
-    node = int(candidates[rng.integers(candidates.size)]) if candidates.size > 1 else int(candidates[0])
+    if ties == "uniform-executions" and candidates.size > 1:
+        weights = _sequences_per_node(graph)[candidates]
+        node = int(rng.choice(candidates, p=weights / weights.sum()))
+    else:
+        node = int(candidates[rng.integers(candidates.size)]) if candidates.size > 1 else int(candidates[0])
     execution = rollout(belief.space.domain, graph.events[node], rng)
     return execution, float(p_accept[node])
+
+
+@lru_cache(maxsize=None)
+def _sequences_per_node(graph: ExecutionGraph) -> np.ndarray:
+    """How many orders of first visits each execution summary stands for: d! / m! for d items, m orderable."""
+    ordered = np.array([len(key[0]) for key in graph.keys])
+    return np.array([math.perm(int(d), int(d - m)) for d, m in zip(graph.depth, ordered, strict=True)], dtype=float)
 
 
 def random_query(belief: Belief, rng: np.random.Generator) -> tuple[Execution, float]:

@@ -66,7 +66,7 @@ def test_min_regret_plan_is_best_of_all_executions(seed):
 
 
 @settings(max_examples=12)
-@given(st.integers(0, 10_000), st.sampled_from(["uniform", "shortest", "stepwise"]))
+@given(st.integers(0, 10_000), st.sampled_from(["uniform", "shortest", "stepwise", "uniform-executions"]))
 def test_active_query_equals_brute_force(seed, ties):
     belief = random_belief(seed)
     query, q = active_query(belief, np.random.default_rng(seed), ties)
