@@ -38,8 +38,9 @@ def _save(fig: plt.Figure, stem: Path) -> list[Path]:
 
 def _title(settings: ExperimentSettings) -> str:
     return (f"{settings.domain}, prior {settings.prior}, truth {settings.truth_sampler}, "
-            f"{settings.runs} runs, noise {settings.noise:g}"
-            + ("" if settings.demo_mode == "optimal" else f", {settings.demo_mode} demonstrations"))
+            f"{settings.runs} runs, noise {settings.noise:g}, {settings.demo_mode} demonstrations"
+            + ("" if settings.query_ties == "uniform" else f", {settings.query_ties} query ties")
+            + ("" if settings.similarity == "authors" else f", {settings.similarity} similarity"))
 
 
 def plot_by_n_query(summary: Sequence[SummaryRow], settings: ExperimentSettings, statistic: str,
