@@ -29,7 +29,7 @@ _CURVE_STREAM = 2  # bootstrap stream of the learning curve, apart from the summ
 
 def _save(fig: plt.Figure, stem: Path) -> list[Path]:
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
-    fig.savefig(paths[0], dpi=150, metadata={"Software": None})
+    fig.savefig(paths[0], dpi=110, metadata={"Software": None})  # modest files: figures are committed
     with plt.rc_context({"svg.hashsalt": "tableteach"}):  # stable element ids: reruns give identical SVGs
         fig.savefig(paths[1], metadata={"Date": None, "Creator": None})
     plt.close(fig)
