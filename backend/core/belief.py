@@ -114,15 +114,15 @@ class Belief:
         """Posterior probability that an execution with this satisfied-clause mask is acceptable."""
         return float(self.probs[self.space.satisfied_by(sat_mask)].sum())
 
-    def similarity(self, truth_mask: int) -> float:
-        """Expected similarity E_P[L(phi, truth)] (the authors' IoU over expanded clause sets)."""
+    def similarity(self, truth_mask: int, metric: str = "authors") -> float:
+        """Expected similarity E_P[L(phi, truth)] (by default the authors' IoU of token sets)."""
         from .metrics import similarities
 
-        return float(self.probs @ similarities(self.space, truth_mask))
+        return float(self.probs @ similarities(self.space, truth_mask, metric))
 
-    def map_similarity(self, truth_mask: int) -> float:
+    def map_similarity(self, truth_mask: int, metric: str = "authors") -> float:
         """Similarity of the MAP formula to the truth."""
         from .metrics import similarity
 
-        return similarity(self.space.domain.clause_space, self.map_mask, truth_mask)
+        return similarity(self.space.domain.clause_space, self.map_mask, truth_mask, metric)
 

@@ -185,15 +185,26 @@ class ClauseSpace:
                 mask |= 1 << i
         return mask
 
-    def expanded_mask(self, mask: int) -> int:
-        """Mask used by the similarity metric: order clauses imply F(a); none on a G-forbidden p."""
+    def expanded_mask(self, mask: int, metric: str = "authors") -> int:
+        """Token set of a formula for the similarity metric, as a mask (see metrics.SIMILARITY_METRICS).
+
+        "authors": an order (a before b) also gives F(a); the order itself is dropped when the
+        formula has G(!b). "strict": the order and its F(a) are dropped when a or b is forbidden.
+        """
+        if metric not in ("authors", "strict"):
+            raise ValueError(f"unknown similarity metric {metric!r}; expected authors or strict")
         forbidden = {c.first for c in self.clauses_of(mask) if c.kind == "G"}
         out = 0
         for clause in self.clauses_of(mask):
             if clause.kind == "U":
-                if clause.first in forbidden or clause.second in forbidden:
-                    continue
-                out |= self.f_bit(clause.first)
+                if metric == "authors":
+                    out |= self.f_bit(clause.first)
+                    if clause.second in forbidden:
+                        continue
+                else:
+                    if clause.first in forbidden or clause.second in forbidden:
+                        continue
+                    out |= self.f_bit(clause.first)
             out |= self.bit(clause)
         return out
 

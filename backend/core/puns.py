@@ -13,6 +13,7 @@ over the DAG solves the product MDP exactly.
 
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,6 +24,18 @@ from .executions import ExecutionGraph, execution_graph
 CRITERIA = ("min-regret", "most-likely", "most-coverage", "chance-constrained")
 SUPPORT_THRESHOLD = 1e-6
 TIE_TOLERANCE = 1e-12
+_ACCEPTANCE: "weakref.WeakKeyDictionary[Belief, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def node_acceptance(belief: Belief) -> np.ndarray:
+    """P(acceptable) of every execution node under a belief (cached per belief object)."""
+    cached = _ACCEPTANCE.get(belief)
+    if cached is None:
+        graph = execution_graph(belief.space.domain)
+        cached = belief.space.weighted_acceptance(belief.probs, graph.sat)
+        cached.flags.writeable = False
+        _ACCEPTANCE[belief] = cached
+    return cached
 
 
 def criterion_weights(
@@ -134,7 +147,10 @@ class Policy:
 
 def node_rewards(belief: Belief, weights: np.ndarray, graph: ExecutionGraph) -> np.ndarray:
     """Terminal reward of stopping at every node: sum_i w_i (+1 accept / -1 reject)."""
-    accepted = belief.space.weighted_acceptance(weights, graph.sat)
+    if weights is belief.probs and graph is execution_graph(belief.space.domain):
+        accepted = node_acceptance(belief)  # min-regret: shared with the belief's active query
+    else:
+        accepted = belief.space.weighted_acceptance(weights, graph.sat)
     return 2.0 * accepted - weights.sum()
 
 

@@ -1,23 +1,34 @@
 """Robot executions: min-regret plans, active (uncertainty-sampling) queries and random queries.
 
 Active query: among every reachable end of an execution, the one whose probability of being
-acceptable is closest to 1/2 (min-regret reward closest to 0); ties go to the shortest, then to
-the seeded rng. The robot then plans a path to it. Random query: a uniformly random action
+acceptable is closest to 1/2 (min-regret reward closest to 0). Ties are the rule (tens to
+hundreds of equally uncertain executions): "uniform" (default, as the authors' softmax over equal
+values) draws one of them with the seeded rng; "shortest" keeps only the shortest tied ones
+first; "stepwise" walks from the start choosing uniformly at each step among the actions (stop
+included) that can still reach a tied execution, as a greedy policy over equal Q-values would
+(long executions with many orderings get less weight than under "uniform"); "uniform-executions"
+draws a tied execution summary with probability proportional to the number of move sequences it
+summarises (synthetic: the orders in which its threats were visited among the waypoints; dinner:
+always 1, the same as "uniform"). The robot then plans a path to it. Random query: a uniformly random action
 (stop included) each step until the execution ends.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
 from .belief import Belief
 from .domain import STOP, Domain
-from .executions import execution_graph
-from .puns import TIE_TOLERANCE, solve
+from .executions import ExecutionGraph, execution_graph
+from .puns import TIE_TOLERANCE, backward_induction, node_acceptance, solve
 
 QUERY_STRATEGIES = ("active", "random")
+QUERY_TIES = ("uniform", "shortest", "stepwise", "uniform-executions")
+DEFAULT_QUERY_TIES = "uniform"
 
 
 @dataclass(frozen=True)
@@ -57,18 +68,41 @@ def plan_execution(
     return execution, belief.p_acceptable(execution.trace)
 
 
-def active_query(belief: Belief, rng: np.random.Generator | None = None) -> tuple[Execution, float]:
-    """The execution the robot is least sure about, with its P(acceptable)."""
+def active_query(
+    belief: Belief, rng: np.random.Generator | None = None, ties: str = DEFAULT_QUERY_TIES
+) -> tuple[Execution, float]:
+    """The execution the robot is least sure about, with its P(acceptable); ties as named in QUERY_TIES."""
+    if ties not in QUERY_TIES:
+        raise ValueError(f"unknown query tie-breaking {ties!r}; expected one of {', '.join(QUERY_TIES)}")
     rng = rng or np.random.default_rng(0)
     graph = execution_graph(belief.space.domain)
-    p_accept = belief.space.weighted_acceptance(belief.probs, graph.sat)
+    p_accept = node_acceptance(belief)
     score = np.abs(2.0 * p_accept - 1.0)
+    if ties == "stepwise":
+        policy = backward_induction(graph, -score, rng=rng, prefer_short=False)
+        node = 0
+        while policy.action[node] >= 0:
+            node = int(graph.child[node, policy.action[node]])
+        execution = rollout(belief.space.domain, graph.events[node], rng)
+        return execution, float(p_accept[node])
     tied = score <= score.min() + TIE_TOLERANCE
-    tied &= graph.depth == graph.depth[tied].min()
+    if ties == "shortest":
+        tied &= graph.depth == graph.depth[tied].min()
     candidates = np.flatnonzero(tied)
-    node = int(candidates[rng.integers(candidates.size)]) if candidates.size > 1 else int(candidates[0])
+    if ties == "uniform-executions" and candidates.size > 1:
+        weights = _sequences_per_node(graph)[candidates]
+        node = int(rng.choice(candidates, p=weights / weights.sum()))
+    else:
+        node = int(candidates[rng.integers(candidates.size)]) if candidates.size > 1 else int(candidates[0])
     execution = rollout(belief.space.domain, graph.events[node], rng)
     return execution, float(p_accept[node])
+
+
+@lru_cache(maxsize=None)
+def _sequences_per_node(graph: ExecutionGraph) -> np.ndarray:
+    """How many orders of first visits each execution summary stands for: d! / m! for d items, m orderable."""
+    ordered = np.array([len(key[0]) for key in graph.keys])
+    return np.array([math.perm(int(d), int(d - m)) for d, m in zip(graph.depth, ordered, strict=True)], dtype=float)
 
 
 def random_query(belief: Belief, rng: np.random.Generator) -> tuple[Execution, float]:
@@ -86,10 +120,12 @@ def random_query(belief: Belief, rng: np.random.Generator) -> tuple[Execution, f
     return Execution(tuple(history), tuple(trace)), belief.p_acceptable(trace)
 
 
-def query(belief: Belief, strategy: str, rng: np.random.Generator) -> tuple[Execution, float]:
+def query(
+    belief: Belief, strategy: str, rng: np.random.Generator, ties: str = DEFAULT_QUERY_TIES
+) -> tuple[Execution, float]:
     """A query by strategy name ('active' or 'random')."""
     if strategy == "active":
-        return active_query(belief, rng)
+        return active_query(belief, rng, ties)
     if strategy == "random":
         return random_query(belief, rng)
     raise ValueError(f"unknown query strategy {strategy!r}; expected one of {', '.join(QUERY_STRATEGIES)}")

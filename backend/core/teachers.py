@@ -1,26 +1,37 @@
 """Simulated teachers and ground truths for experiments and scripted sessions.
 
-A teacher knows a ground-truth formula (a clause-set mask). It demonstrates by following an
-optimal policy for that formula with random tie-breaking ("optimal"), by drawing uniformly from
-all satisfying executions ("uniform"), or by an optimal policy with fixed tie-breaking that
-repeats the same demonstration ("fixed": stop as soon as possible, lowest index first); it
-assesses an execution by checking the formula, flipping its
-verdict with probability ``noise`` (the paper assumed a perfect teacher; people are not).
+A teacher knows a ground-truth formula (a clause-set mask). Its demonstration modes:
+
+- "required-only" (default; the authors' demonstrator): only the required items, the F items
+  and the antecedent a of every order (!b U a), in an order drawn uniformly from the orders of
+  that set that satisfy every order clause, then stop. Never a forbidden or optional item.
+- "optimal": an optimal policy for reward +1 on every satisfying execution, random tie-breaking
+  (it performs optional items and threats the truth allows);
+- "uniform": uniformly random among all satisfying executions;
+- "fixed": an optimal policy with fixed tie-breaking that repeats the same demonstration
+  (stop as soon as possible, lowest index first).
+
+It assesses an execution by checking the formula, flipping its verdict with probability
+``noise`` (the paper assumed a perfect teacher; people are not).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import lru_cache
+from itertools import permutations
 
 import numpy as np
 
+from .clauses import ClauseSpace
 from .domain import Domain
 from .executions import execution_graph
 from .hypotheses import HypothesisSpace
 from .puns import backward_induction
 from .queries import Execution, rollout
 
-DEMO_MODES = ("optimal", "uniform", "fixed")
+DEMO_MODES = ("required-only", "optimal", "uniform", "fixed")
+DEFAULT_DEMO_MODE = "required-only"
 
 
 def satisfying_nodes(domain: Domain, truth_mask: int) -> np.ndarray:
@@ -61,6 +72,25 @@ def authors_ground_truth(domain: Domain, rng: np.random.Generator) -> int:
     return mask
 
 
+def required_items(space: ClauseSpace, truth_mask: int) -> tuple[str, ...]:
+    """Propositions the truth requires: its F items and the antecedent a of every (!b U a)."""
+    need = {c.first for c in space.clauses_of(truth_mask) if c.kind in ("F", "U")}
+    return tuple(p for p in space.orderable if p in need)
+
+
+@lru_cache(maxsize=4096)
+def valid_orders(space: ClauseSpace, truth_mask: int) -> tuple[tuple[str, ...], ...]:
+    """Every order of the required items that satisfies every order clause of the truth."""
+    items = required_items(space, truth_mask)
+    pairs = [(c.first, c.second) for c in space.clauses_of(truth_mask) if c.kind == "U" and c.second in items]
+    out = []
+    for order in permutations(items):
+        at = {p: i for i, p in enumerate(order)}
+        if all(at[a] < at[b] for a, b in pairs):
+            out.append(order)
+    return tuple(out)
+
+
 @dataclass(frozen=True)
 class SimulatedTeacher:
     """A teacher who knows the ground truth and demonstrates and assesses accordingly."""
@@ -68,7 +98,7 @@ class SimulatedTeacher:
     domain: Domain
     truth_mask: int
     noise: float = 0.0
-    demo_mode: str = "optimal"
+    demo_mode: str = DEFAULT_DEMO_MODE
 
     def __post_init__(self) -> None:
         if not 0.0 <= self.noise <= 1.0:
@@ -81,6 +111,9 @@ class SimulatedTeacher:
 
     def demonstrate(self, rng: np.random.Generator) -> Execution:
         """One demonstration: an execution that satisfies the ground truth."""
+        if self.demo_mode == "required-only":
+            orders = valid_orders(self.domain.clause_space, self.truth_mask)
+            return rollout(self.domain, orders[int(rng.integers(len(orders)))], rng)
         graph = execution_graph(self.domain)
         good = satisfying_nodes(self.domain, self.truth_mask)
         if self.demo_mode == "uniform":

@@ -6,7 +6,9 @@ import argparse
 from typing import Any
 
 from ..core.priors import DEFAULT_PRIOR, NAMED_PRIORS
-from ..core.teachers import DEMO_MODES
+from ..core.metrics import DEFAULT_METRIC, SIMILARITY_METRICS
+from ..core.queries import DEFAULT_QUERY_TIES, QUERY_TIES
+from ..core.teachers import DEFAULT_DEMO_MODE, DEMO_MODES
 from .settings import DOMAINS, TRUTH_SAMPLERS, ExperimentSettings, parse_n_query, resolve_truth_sampler
 
 DESCRIPTION = """Simulated teaching sessions comparing Active, Random and Batch learning, paired within
@@ -30,11 +32,21 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--truth-sampler", choices=list(TRUTH_SAMPLERS), default=None,
                    help="how random ground truths are drawn: from the prior (satisfiable only; default) "
                         "or the authors' sampler; not for dinner-task1/2, whose truth is fixed")
-    p.add_argument("--demo-mode", choices=list(DEMO_MODES), default="optimal",
-                   help="demonstrations: optimal policy with random tie-breaking (default), or uniform "
-                        "over satisfying executions")
+    p.add_argument("--demo-mode", choices=list(DEMO_MODES), default=DEFAULT_DEMO_MODE,
+                   help="demonstrations: required-only (default; the authors' demonstrator: required items "
+                        "in a random valid order, then stop), optimal (optimal policy, random ties, extras "
+                        "included), uniform (over satisfying executions) or fixed (the same one every time)")
+    p.add_argument("--similarity", choices=list(SIMILARITY_METRICS), default=DEFAULT_METRIC,
+                   help="similarity metric: the authors' IoU (default) or strict (drops orders on any "
+                        "forbidden item)")
+    p.add_argument("--query-ties", choices=list(QUERY_TIES), default=DEFAULT_QUERY_TIES,
+                   help="active query ties: uniform among all tied executions (default, as the authors) "
+                        "or shortest first")
     p.add_argument("--noise", type=float, default=0.0,
                    help="probability that the teacher flips an assessment (default 0)")
+    p.add_argument("--test-success", action="store_true",
+                   help="also record whether the robot's test execution (the min-regret plan) after each "
+                        "n_query's final step satisfies the truth (slower)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     p.add_argument("--dask", metavar="ADDRESS", default=None,
                    help="run on an existing Dask cluster, e.g. tcp://scheduler:8786, instead of locally")
@@ -53,6 +65,9 @@ def settings_from_args(args: argparse.Namespace) -> ExperimentSettings:
         truth_sampler=resolve_truth_sampler(args.domain, args.truth_sampler),
         demo_mode=args.demo_mode,
         noise=args.noise,
+        similarity=args.similarity,
+        query_ties=args.query_ties,
+        test_success=args.test_success,
     )
 
 

@@ -29,7 +29,7 @@ _CURVE_STREAM = 2  # bootstrap stream of the learning curve, apart from the summ
 
 def _save(fig: plt.Figure, stem: Path) -> list[Path]:
     paths = [stem.with_suffix(".png"), stem.with_suffix(".svg")]
-    fig.savefig(paths[0], dpi=150, metadata={"Software": None})
+    fig.savefig(paths[0], dpi=110, metadata={"Software": None})  # modest files: figures are committed
     with plt.rc_context({"svg.hashsalt": "tableteach"}):  # stable element ids: reruns give identical SVGs
         fig.savefig(paths[1], metadata={"Date": None, "Creator": None})
     plt.close(fig)
@@ -38,8 +38,9 @@ def _save(fig: plt.Figure, stem: Path) -> list[Path]:
 
 def _title(settings: ExperimentSettings) -> str:
     return (f"{settings.domain}, prior {settings.prior}, truth {settings.truth_sampler}, "
-            f"{settings.runs} runs, noise {settings.noise:g}"
-            + ("" if settings.demo_mode == "optimal" else f", {settings.demo_mode} demonstrations"))
+            f"{settings.runs} runs, noise {settings.noise:g}, {settings.demo_mode} demonstrations"
+            + ("" if settings.query_ties == "uniform" else f", {settings.query_ties} query ties")
+            + ("" if settings.similarity == "authors" else f", {settings.similarity} similarity"))
 
 
 def plot_by_n_query(summary: Sequence[SummaryRow], settings: ExperimentSettings, statistic: str,

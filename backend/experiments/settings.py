@@ -9,7 +9,9 @@ from typing import Any
 
 from ..core.domain import DINNER_TASK_FORMULAS
 from ..core.priors import DEFAULT_PRIOR, NAMED_PRIORS
-from ..core.teachers import DEMO_MODES
+from ..core.metrics import DEFAULT_METRIC, SIMILARITY_METRICS
+from ..core.queries import DEFAULT_QUERY_TIES, QUERY_TIES
+from ..core.teachers import DEFAULT_DEMO_MODE, DEMO_MODES
 
 N_DEMONSTRATIONS = 2  # the paper's protocols all start from two demonstrations
 
@@ -35,8 +37,11 @@ class ExperimentSettings:
     seed: int = 0
     prior: str = DEFAULT_PRIOR
     truth_sampler: str = "prior"
-    demo_mode: str = "optimal"
+    demo_mode: str = DEFAULT_DEMO_MODE
     noise: float = 0.0
+    similarity: str = DEFAULT_METRIC
+    query_ties: str = DEFAULT_QUERY_TIES
+    test_success: bool = False
     n_demonstrations: int = field(default=N_DEMONSTRATIONS)
 
     def __post_init__(self) -> None:
@@ -62,6 +67,14 @@ class ExperimentSettings:
             )
         if self.demo_mode not in DEMO_MODES:
             raise ValueError(f"unknown demonstration mode {self.demo_mode!r}; expected one of {', '.join(DEMO_MODES)}")
+        if self.similarity not in SIMILARITY_METRICS:
+            raise ValueError(
+                f"unknown similarity metric {self.similarity!r}; expected one of {', '.join(SIMILARITY_METRICS)}"
+            )
+        if self.query_ties not in QUERY_TIES:
+            raise ValueError(f"unknown query tie-breaking {self.query_ties!r}; expected one of {', '.join(QUERY_TIES)}")
+        if not isinstance(self.test_success, bool):
+            raise ValueError(f"test_success must be true or false, got {self.test_success!r}")
         if isinstance(self.noise, bool) or not isinstance(self.noise, (int, float)) or not 0.0 <= self.noise <= 1.0:
             raise ValueError(f"noise must be a probability in [0, 1], got {self.noise!r}")
 

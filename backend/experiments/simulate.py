@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -22,14 +22,14 @@ import numpy as np
 from ..core.belief import Belief
 from ..core.domain import get_domain
 from ..core.hypotheses import HypothesisSpace, get_space
-from ..core.queries import Execution, active_query, random_query
+from ..core.queries import Execution, active_query, plan_execution, random_query
 from ..core.teachers import SimulatedTeacher, authors_ground_truth, sample_ground_truth
 from ..core.session import PROTOCOLS
 from .settings import ExperimentSettings
 
 COLUMNS = (
     "run", "seed", "domain", "prior", "protocol", "n_query", "step", "n_executions",
-    "entropy", "similarity", "map_similarity", "map_formula", "ground_truth", "seconds",
+    "entropy", "similarity", "map_similarity", "map_formula", "ground_truth", "test_success", "seconds",
 )
 
 
@@ -43,6 +43,7 @@ class StepResult:
     map_similarity: float
     map_formula: str
     seconds: float
+    test_success: int | None = None
 
 
 def draw_truth(settings: ExperimentSettings, space: HypothesisSpace, rng: np.random.Generator) -> int:
@@ -54,19 +55,43 @@ def draw_truth(settings: ExperimentSettings, space: HypothesisSpace, rng: np.ran
     return sample_ground_truth(space, rng)
 
 
-def _step_result(kind: str, belief: Belief, truth: int, seconds: float) -> StepResult:
+class _Tester:
+    """Whether the robot's test execution (min-regret plan of a belief) satisfies the truth, at chosen steps."""
+
+    def __init__(self, settings: ExperimentSettings, truth: int, seed: np.random.SeedSequence) -> None:
+        self.enabled = settings.test_success
+        self.finals = {settings.n_demonstrations + n for n in settings.n_query}
+        self.truth = truth
+        self.seed = seed
+
+    def __call__(self, belief: Belief, n_executions: int, protocol: str) -> int | None:
+        """1 or 0 at a final step of some n_query when enabled, else None (not measured)."""
+        if not self.enabled or n_executions not in self.finals:
+            return None
+        # its own stream per (protocol, step): the learner's and teacher's streams stay untouched
+        rng = np.random.default_rng([*self.seed.generate_state(2), PROTOCOL_INDEX[protocol], n_executions])
+        execution, _ = plan_execution(belief, rng=rng)
+        sat = belief.space.domain.clause_space.sat_mask(execution.trace)
+        return int((self.truth & ~sat) == 0)
+
+
+PROTOCOL_INDEX = {protocol: i for i, protocol in enumerate(PROTOCOLS)} | {"shared": len(PROTOCOLS)}
+
+
+def _step_result(kind: str, belief: Belief, truth: int, seconds: float, metric: str) -> StepResult:
     """A step's metrics against the run's ground truth."""
     return StepResult(
         kind=kind,
         entropy=belief.entropy + 0.0,  # + 0.0 turns -0.0 into 0.0
-        similarity=belief.similarity(truth),
-        map_similarity=belief.map_similarity(truth),
+        similarity=belief.similarity(truth, metric),
+        map_similarity=belief.map_similarity(truth, metric),
         map_formula=belief.space.domain.clause_space.text_of(belief.map_mask),
         seconds=seconds,
     )
 
 
 def _protocol_steps(
+    settings: ExperimentSettings,
     protocol: str,
     belief: Belief,
     teacher: SimulatedTeacher,
@@ -74,19 +99,23 @@ def _protocol_steps(
     learner_rng: np.random.Generator,
     teacher_rng: np.random.Generator,
     truth: int,
+    tester: _Tester,
 ) -> list[StepResult]:
     """The steps a protocol takes after the shared demonstrations."""
     out: list[StepResult] = []
-    for _ in range(n_steps):
+    first = settings.n_demonstrations + 1
+    for k in range(n_steps):
         started = time.perf_counter()
         if protocol == "batch":
             demo: Execution = teacher.demonstrate(teacher_rng)
             learner_started = time.perf_counter()
             belief = belief.observe(demo.trace, True)
-            out.append(_step_result("demonstration", belief, truth, time.perf_counter() - learner_started))
+            seconds = time.perf_counter() - learner_started
+            result = _step_result("demonstration", belief, truth, seconds, settings.similarity)
+            out.append(replace(result, test_success=tester(belief, first + k, protocol)))
             continue
         if protocol == "active":
-            execution, _ = active_query(belief, learner_rng)
+            execution, _ = active_query(belief, learner_rng, settings.query_ties)
         else:
             execution, _ = random_query(belief, learner_rng)
         chosen = time.perf_counter()
@@ -94,27 +123,32 @@ def _protocol_steps(
         updating = time.perf_counter()
         belief = belief.observe(execution.trace, verdict)
         seconds = (chosen - started) + (time.perf_counter() - updating)
-        out.append(_step_result("query", belief, truth, seconds))
+        result = _step_result("query", belief, truth, seconds, settings.similarity)
+        out.append(replace(result, test_success=tester(belief, first + k, protocol)))
     return out
 
 
 def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
     """All rows of one run (every protocol, every n_query, every learning step), in sorted order."""
-    streams = np.random.SeedSequence([settings.seed, run]).spawn(3 + len(PROTOCOLS))
+    streams = np.random.SeedSequence([settings.seed, run]).spawn(4 + len(PROTOCOLS))
     truth_rng, demo_rng = np.random.default_rng(streams[0]), np.random.default_rng(streams[1])
     space = get_space(settings.task, settings.prior)
     domain = get_domain(settings.task)
     truth = draw_truth(settings, space, truth_rng)
     teacher = SimulatedTeacher(domain, truth, noise=settings.noise, demo_mode=settings.demo_mode)
+    tester = _Tester(settings, truth, streams[3 + len(PROTOCOLS)])  # spawned last: earlier streams unchanged
 
     started = time.perf_counter()
     belief = Belief.prior(space)
-    shared = [_step_result("prior", belief, truth, time.perf_counter() - started)]
+    shared = [replace(_step_result("prior", belief, truth, time.perf_counter() - started, settings.similarity),
+                      test_success=tester(belief, 0, "shared"))]
     for _ in range(settings.n_demonstrations):
         demo = teacher.demonstrate(demo_rng)
         started = time.perf_counter()
         belief = belief.observe(demo.trace, True)
-        shared.append(_step_result("demonstration", belief, truth, time.perf_counter() - started))
+        seconds = time.perf_counter() - started
+        result = _step_result("demonstration", belief, truth, seconds, settings.similarity)
+        shared.append(replace(result, test_success=tester(belief, len(shared), "shared")))
 
     truth_text = domain.clause_space.text_of(truth)
     rows: list[list[Any]] = []
@@ -124,14 +158,14 @@ def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
         # query positions in both; Batch's teacher uses the stream for its extra demonstrations.
         teacher_rng = np.random.default_rng(streams[3 + k] if protocol == "batch" else streams[2])
         steps = shared + _protocol_steps(
-            protocol, belief, teacher, settings.max_n_query, learner_rng, teacher_rng, truth
+            settings, protocol, belief, teacher, settings.max_n_query, learner_rng, teacher_rng, truth, tester
         )
         for n_query in settings.n_query:
             for n_executions, step in enumerate(steps[: settings.n_demonstrations + n_query + 1]):
                 rows.append([
                     run, settings.seed, settings.domain, settings.prior, protocol, n_query, step.kind,
                     n_executions, step.entropy, step.similarity, step.map_similarity, step.map_formula,
-                    truth_text, step.seconds,
+                    truth_text, "" if step.test_success is None else step.test_success, step.seconds,
                 ])
     return rows
 

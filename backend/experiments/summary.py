@@ -16,7 +16,7 @@ import numpy as np
 from ..core.session import PROTOCOLS
 from .settings import ExperimentSettings
 
-METRICS = ("similarity", "entropy", "map_similarity")
+METRICS = ("similarity", "entropy", "map_similarity", "test_success")  # test_success: nan when not measured
 STATISTICS: dict[str, Callable[..., np.ndarray]] = {"median": np.median, "mean": np.mean}
 N_BOOTSTRAP = 2000
 CONFIDENCE = 0.95
@@ -78,7 +78,7 @@ def final_values(rows: Sequence[dict[str, str]],
     out: dict[tuple[str, int], dict[str, np.ndarray]] = {}
     for key, members in groups.items():
         members.sort(key=lambda r: int(r["run"]))
-        out[key] = {m: np.array([float(r[m]) for r in members]) for m in METRICS}
+        out[key] = {m: np.array([float(r[m]) if r[m] != "" else np.nan for r in members]) for m in METRICS}
     return out
 
 
@@ -94,7 +94,10 @@ def summarize(rows: Sequence[dict[str, str]], settings: ExperimentSettings) -> l
             stats: dict[str, float] = {}
             for m, metric in enumerate(METRICS):
                 for s, stat in enumerate(STATISTICS):
-                    est, low, high = bootstrap_ci(group[metric], stat, group_rng(settings.seed, p, n_query, m, s))
+                    if np.isnan(group[metric]).any():  # not measured in this sweep
+                        est = low = high = float("nan")
+                    else:
+                        est, low, high = bootstrap_ci(group[metric], stat, group_rng(settings.seed, p, n_query, m, s))
                     stats.update({f"{metric}_{stat}": est, f"{metric}_{stat}_lo": low, f"{metric}_{stat}_hi": high})
             # Share of runs whose single most probable formula is exactly the truth (up to the metric).
             stats["map_exact"] = float(np.mean(group["map_similarity"] == 1.0))
@@ -115,9 +118,14 @@ def paired_differences(rows: Sequence[dict[str, str]], settings: ExperimentSetti
                 continue
             diff = values[(a, n_query)]["similarity"] - values[(b, n_query)]["similarity"]
             mean, low, high = bootstrap_ci(diff, "mean", group_rng(settings.seed, len(PROTOCOLS) + k, n_query))
+            med, med_low, med_high = bootstrap_ci(
+                diff, "median", group_rng(settings.seed, len(PROTOCOLS) + len(PAIRS) + k, n_query)
+            )
             out.append({
                 "n_query": n_query, "comparison": f"{a}-{b}", "runs": int(diff.size),
                 "similarity_diff_mean": mean, "similarity_diff_mean_lo": low, "similarity_diff_mean_hi": high,
+                "similarity_diff_median": med, "similarity_diff_median_lo": med_low,
+                "similarity_diff_median_hi": med_high,
                 "share_better": float(np.mean(diff > 1e-9)), "share_equal": float(np.mean(np.abs(diff) <= 1e-9)),
                 "share_worse": float(np.mean(diff < -1e-9)),
             })
@@ -134,7 +142,8 @@ def write_csv(path: Path, records: Sequence[dict[str, object]], columns: Sequenc
 
 
 PAIRED_COLUMNS = ("n_query", "comparison", "runs", "similarity_diff_mean", "similarity_diff_mean_lo",
-                  "similarity_diff_mean_hi", "share_better", "share_equal", "share_worse")
+                  "similarity_diff_mean_hi", "similarity_diff_median", "similarity_diff_median_lo",
+                  "similarity_diff_median_hi", "share_better", "share_equal", "share_worse")
 
 
 def write_summary(path: Path, summary: Sequence[SummaryRow]) -> None:

@@ -48,7 +48,17 @@ def test_non_template_formula_is_refused_with_its_text():
         SPACE.mask_of_formula("F(bowl) & X(fork)")
 
 
-def test_expanded_mask_adds_eventually_and_drops_forbidden_orders():
-    mask = SPACE.mask_of_formula("(!bowl U dinner_plate) & (!fork U knife) & G(!fork)")
-    expanded = SPACE.expanded_mask(mask)
+def test_expanded_mask_authors_drop_an_order_only_when_its_later_item_is_forbidden():
+    mask = SPACE.mask_of_formula("(!bowl U dinner_plate) & (!fork U knife) & (!knife U fork) & G(!fork)")
+    expanded = SPACE.expanded_mask(mask)  # the authors' tokens: (a, b) and 'a'; (a, b) gone if G(!b)
+    assert SPACE.clause_texts(expanded) == [
+        "G(!fork)", "F(dinner_plate)", "F(knife)", "F(fork)", "(!bowl U dinner_plate)", "(!knife U fork)"
+    ]
+
+
+def test_expanded_mask_strict_drops_orders_on_any_forbidden_item_with_their_eventually():
+    mask = SPACE.mask_of_formula("(!bowl U dinner_plate) & (!fork U knife) & (!knife U fork) & G(!fork)")
+    expanded = SPACE.expanded_mask(mask, "strict")
     assert SPACE.clause_texts(expanded) == ["G(!fork)", "F(dinner_plate)", "(!bowl U dinner_plate)"]
+    with pytest.raises(ValueError, match="unknown similarity metric 'iou'"):
+        SPACE.expanded_mask(mask, "iou")

@@ -30,8 +30,14 @@ def test_paper_worked_example():
     belief = worked_example()
     plan, p = plan_execution(belief)
     assert plan.events == ("dinner_plate", "bowl") and p == pytest.approx(1.0)
-    query, q = active_query(belief)
+    query, q = active_query(belief, ties="shortest")
     assert query.events == ("bowl",) and q == pytest.approx(0.7)
+    tied = {e for e, p in zip(ALL_EXECUTIONS, brute_force_p(belief), strict=True) if p == pytest.approx(0.7)}
+    rng = np.random.default_rng(0)
+    drawn = {active_query(belief, rng)[0].events for _ in range(200)}  # uniform: any tied one, not only shortest
+    assert drawn <= tied and len(drawn) > 10 and any(len(e) > 1 for e in drawn)
+    with pytest.raises(ValueError, match="unknown query tie-breaking 'first'"):
+        active_query(belief, rng, ties="first")
 
 
 def brute_force_p(belief):
@@ -60,14 +66,14 @@ def test_min_regret_plan_is_best_of_all_executions(seed):
 
 
 @settings(max_examples=12)
-@given(st.integers(0, 10_000))
-def test_active_query_equals_brute_force(seed):
+@given(st.integers(0, 10_000), st.sampled_from(["uniform", "shortest", "stepwise", "uniform-executions"]))
+def test_active_query_equals_brute_force(seed, ties):
     belief = random_belief(seed)
-    query, q = active_query(belief, np.random.default_rng(seed))
+    query, q = active_query(belief, np.random.default_rng(seed), ties)
     score = np.abs(2 * brute_force_p(belief) - 1)
     best = score <= score.min() + 1e-12
     shortest = min(len(e) for e, b in zip(ALL_EXECUTIONS, best, strict=True) if b)
-    allowed = {e for e, b in zip(ALL_EXECUTIONS, best, strict=True) if b and len(e) == shortest}
+    allowed = {e for e, b in zip(ALL_EXECUTIONS, best, strict=True) if b and (ties != "shortest" or len(e) == shortest)}
     assert query.events in allowed
     assert abs(2 * q - 1) == pytest.approx(score.min(), abs=1e-12)
 

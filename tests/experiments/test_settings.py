@@ -28,6 +28,10 @@ def test_parse_n_query_rejects(text, message):
     ({"domain": "dinner-task2", "truth_sampler": "prior"}, "has a fixed ground truth"),
     ({"truth_sampler": "fixed"}, "ground truths are drawn per run"),
     ({"noise": -0.1}, r"noise must be a probability in \[0, 1\]"),
+    ({"noise": 1.5}, r"noise must be a probability in \[0, 1\], got 1.5"),
+    ({"similarity": "jaccard"}, "unknown similarity metric 'jaccard'; expected one of authors, strict"),
+    ({"query_ties": "first"}, "unknown query tie-breaking 'first'; expected one of uniform, shortest"),
+    ({"test_success": "yes"}, "test_success must be true or false"),
 ])
 def test_settings_reject(kwargs, message):
     with pytest.raises(ValueError, match=message):
@@ -36,7 +40,8 @@ def test_settings_reject(kwargs, message):
 
 def test_settings_round_trip_through_json():
     settings = ExperimentSettings(domain="dinner-random", runs=7, n_query=(0, 3), seed=9, truth_sampler="authors",
-                                  demo_mode="uniform", noise=0.1)
+                                  demo_mode="uniform", noise=0.1, similarity="strict", query_ties="shortest",
+                                  test_success=True)
     assert ExperimentSettings.from_json(settings.to_json()) == settings
 
 

@@ -71,6 +71,36 @@ def test_uniform_demonstrations_differ_from_optimal_ones():
     assert [r[COL["entropy"]] for r in optimal] != [r[COL["entropy"]] for r in uniform]
 
 
+def test_defaults_are_the_authors_demonstrator_metric_and_ties():
+    settings = ExperimentSettings()
+    assert (settings.demo_mode, settings.similarity, settings.query_ties) == ("required-only", "authors", "uniform")
+
+
+def test_test_success_is_measured_at_final_steps_only_and_changes_nothing_else():
+    base = ExperimentSettings(domain="dinner-random", runs=1, n_query=(1, 3))
+    plain, tested = simulate_run(base, 0), simulate_run(replace(base, test_success=True), 0)
+    col = COL["test_success"]
+    assert {r[col] for r in plain} == {""}
+    assert [r[:col] for r in plain] == [r[:col] for r in tested]  # same learning: its own random stream
+    for r in tested:
+        final = r[COL["n_executions"]] in (3, 5)
+        assert (r[col] in (0, 1)) if final else r[col] == ""
+
+
+def test_the_metric_changes_similarities_only():
+    base = ExperimentSettings(domain="dinner-task2", runs=1, n_query=(4,), truth_sampler="fixed")
+    rows, strict = simulate_run(base, 0), simulate_run(replace(base, similarity="strict"), 0)
+    assert [r[COL["entropy"]] for r in rows] == [r[COL["entropy"]] for r in strict]  # the same learning
+    assert [r[COL["similarity"]] for r in rows] != [r[COL["similarity"]] for r in strict]
+
+
+def test_tie_breaking_changes_which_queries_are_asked():
+    base = ExperimentSettings(domain="dinner-random", runs=5, n_query=(4,))
+    entropies = [[r[COL["entropy"]] for r in simulate_run(replace(base, query_ties=ties), run)]
+                 for ties in ("uniform", "shortest") for run in range(5)]
+    assert entropies[:5] != entropies[5:]
+
+
 def test_run_task_json_rejects_a_run_outside_the_sweep():
     settings = ExperimentSettings(domain="dinner-random", runs=2, n_query=(0,))
     with pytest.raises(ValueError, match=r"in \[0, 2\), got 2"):

@@ -1,0 +1,65 @@
+"""Cross-sweep figures and tables: the user study in simulation and the fallible teacher."""
+
+import csv
+
+import pytest
+
+from tableteach.experiments.compare import PAPER_STUDY_MEDIANS, main
+from tableteach.experiments.settings import ExperimentSettings
+from tableteach.experiments.sweep import run_sweep
+
+
+def sweep(tmp_path, name, **kwargs):
+    settings = ExperimentSettings(runs=3, n_query=(3,), test_success=True, **kwargs)
+    run_sweep(settings, tmp_path / name, workers=1, progress=False, figures=False)
+    return tmp_path / name
+
+
+def read(path):
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def test_user_study_curves_cover_both_tasks_from_the_last_demonstration(tmp_path):
+    task1 = sweep(tmp_path, "t1", domain="dinner-task1", truth_sampler="fixed")
+    task2 = sweep(tmp_path, "t2", domain="dinner-task2", truth_sampler="fixed")
+    assert main(["user-study", "--task1", str(task1), "--task2", str(task2), "--out", str(tmp_path / "study")]) == 0
+    rows = read(tmp_path / "study" / "user_study.csv")
+    assert {(r["task"], r["protocol"]) for r in rows} == {(t, p) for t in PAPER_STUDY_MEDIANS
+                                                          for p in ("active", "random", "batch")}
+    assert sorted({int(r["n_executions"]) for r in rows}) == [2, 3, 4, 5]
+    both = {int(r["n_executions"]): r for r in rows if r["task"] == "both" and r["protocol"] == "active"}
+    assert all(int(r["runs"]) == 6 for r in both.values())  # the two tasks pooled
+    for r in rows:
+        assert float(r["similarity_median_lo"]) <= float(r["similarity_median"]) <= float(r["similarity_median_hi"])
+    assert (tmp_path / "study" / "user_study.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_noise_table_has_one_row_per_level_and_protocol(tmp_path):
+    folders = [sweep(tmp_path, f"n{noise}", domain="dinner-task2", truth_sampler="fixed", noise=noise)
+               for noise in (0.0, 0.5)]
+    assert main(["noise", *map(str, folders), "--n-query", "3", "--out", str(tmp_path / "noise")]) == 0
+    rows = read(tmp_path / "noise" / "noise.csv")
+    assert {(float(r["noise"]), r["protocol"]) for r in rows} == {(n, p) for n in (0.0, 0.5)
+                                                                  for p in ("active", "random", "batch")}
+    assert all(0.0 <= float(r["test_success_mean"]) <= 1.0 for r in rows)
+    assert (tmp_path / "noise" / "noise.png").exists()
+
+
+def test_compare_refuses_what_it_cannot_use(tmp_path, capsys):
+    untested = tmp_path / "plain"
+    run_sweep(ExperimentSettings(domain="dinner-task2", truth_sampler="fixed", runs=2, n_query=(1,)), untested,
+              workers=1, progress=False, figures=False)
+    assert main(["noise", str(untested), "--n-query", "1", "--out", str(tmp_path / "o")]) == 2
+    assert "did not measure test success; expected a sweep run with --test-success" in capsys.readouterr().err
+    assert main(["noise", str(untested), "--n-query", "4", "--out", str(tmp_path / "o")]) == 2
+    assert "has no rows for n_query 4" in capsys.readouterr().err
+    assert main(["user-study", "--task1", str(tmp_path / "nope"), "--task2", str(untested),
+                 "--out", str(tmp_path / "o")]) == 2
+    assert "is not a finished sweep folder" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("argv", [["noise"], ["user-study", "--task1", "x"]])
+def test_compare_needs_its_arguments(argv):
+    with pytest.raises(SystemExit):
+        main(argv)
