@@ -41,7 +41,7 @@ from .studies import (
     study_view,
 )
 from .teaching import assess_execution, finish_demonstration, place_object, start_execution
-from .viewing import claim_tab, open_viewer, release_tab, robot_activity
+from .viewing import claim_tab, current_motion, open_viewer, participant_id_of, release_tab, robot_activity
 
 __all__ = [
     "ASSIGNMENTS",
@@ -70,6 +70,7 @@ __all__ = [
     "assess_execution",
     "belief_summary",
     "claim_tab",
+    "current_motion",
     "close_study",
     "create_study",
     "export_rows",
@@ -82,6 +83,7 @@ __all__ = [
     "list_studies",
     "open_study",
     "open_viewer",
+    "participant_id_of",
     "participant_state",
     "place_object",
     "release_tab",

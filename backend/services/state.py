@@ -15,6 +15,7 @@ from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
 from ..sim.recordings import RecordingId
+from . import executions
 from .context import Context, app_version, commit, iso
 from .planning import ROBOT_TURNS, position_of, session_of
 
@@ -55,22 +56,26 @@ def current_task(s: Any, participant: ParticipantRow) -> TaskSessionRow | None:
 
 
 def sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskSessionRow) -> bool:
-    """Ask the robot how a running execution is going; True if it has just finished (state changed)."""
+    """Record a running execution that has finished by its stored clock; True if the stored state changed.
+
+    The plan and start time are in the database (services.executions), so any process answers alike.
+    An execution stored without a plan (started by an older version) gets one now, starting now.
+    """
     execution = ts.execution
     if execution is None or execution["status"] != "running":
         return False
-    key = robot_key(participant, ts.task_index)
-    progress = ctx.robot.progress(key)
-    if progress is None or list(progress.events) != execution["events"]:
-        # The robot forgot it (server restart): it starts the same execution again.
-        log.info("robot lost execution %s; restarting it", key)
-        ctx.robot.execute(key, execution["events"])
-        progress = ctx.robot.progress(key)
-    if progress is None or not progress.finished:
-        return False
-    trace = [sorted(labels) for labels in progress.trace]
+    changed = False
+    if execution.get("plan") is None:
+        rid = RecordingId(participant.id, ts.task_index, execution["kind"], execution["index"])
+        execution = {**execution, "plan": executions.plan(ctx, robot_key(participant, ts.task_index), rid,
+                                                           execution["events"]),
+                     "started_at": utcnow().isoformat()}
+        ts.execution, changed = execution, True
+    progress = executions.progress(execution)
+    if not progress.finished:
+        return changed
+    trace = progress.trace
     ts.execution = {**execution, "status": "finished", "trace": trace, "finished_at": utcnow().isoformat()}
-    save_recording(ctx, participant, ts.task_index, execution["kind"], execution["index"])
     repo.append_event(
         s, participant=participant, kind="execution_finished", app_version=app_version(),
         task_index=ts.task_index, step_kind=execution["kind"], step_index=execution["index"],
@@ -144,7 +149,10 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
     with ctx.db.read() as s:
         participant, study = participant_and_study(s, token)
         ts = current_task(s, participant)
-        needs_write = ts is not None and ts.execution is not None and ts.execution["status"] == "running"
+        ex = ts.execution if ts is not None else None
+        # Only a running execution that has just finished (or has no stored plan yet) is written.
+        needs_write = ex is not None and ex["status"] == "running" and (
+            ex.get("plan") is None or executions.progress(ex).finished)
         if not needs_write:
             if ts is not None and ts.execution is None:
                 ctx.planner.plan_ahead(ts.state_json)  # e.g. after a restart, before the participant asks

@@ -19,7 +19,8 @@ from collections import deque
 from collections.abc import Callable, Sequence
 from pathlib import Path
 
-from ..robot import RobotActivity, RobotProgress
+from ..robot import ExecutionPlan, RobotActivity, RobotProgress
+from .motion_file import Studio, viser_path, write_atomically
 from .physics import MujocoWorld
 from .playback import play
 from .recording import Recording
@@ -86,6 +87,8 @@ class MujocoRobot:
         self._lock = threading.Lock()
         self._reaper: threading.Thread | None = None
         self._closing = threading.Event()
+        self._studio: Studio | None = None
+        self._plans: dict[tuple[str, tuple[str, ...], str], ExecutionPlan] = {}  # the last few, see plan_execution
 
     # -- Robot -------------------------------------------------------------------------------------
     def reset(self, key: str) -> Labels:
@@ -144,6 +147,51 @@ class MujocoRobot:
                 table.execution = events
             self._refresh(table)
             self._start_player(table)
+
+    def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
+        """Simulate the whole execution on a fresh copy of the table and save it (.npz, .json and a .viser file).
+
+        Nothing is shown live: the browser plays the .viser file. The same call again (e.g. warming up
+        before a transaction, then inside it) returns the plan already made.
+        """
+        events = tuple(events)
+        rid = RecordingId.parse(name)
+        memo = (key, events, name)
+        with self._lock:
+            known = self._plans.get(memo)
+        if known is not None and viser_path(self.data_dir, rid).exists():
+            return known
+        world = MujocoWorld(table_seed(key))
+        try:
+            check_sequence(events, world.objects)  # refuse the whole request before anything moves
+            start = float(world.data.time)
+            starts, ends = [], []
+            for obj in events:
+                starts.append(float(world.data.time))
+                world.place(obj)
+                ends.append(float(world.data.time))
+            recording = world.recording
+            saved = SavedRecording(rid, recording, tuple(world.placed), tuple(world.trace), tuple(ends))
+            save_recording(self.data_dir, saved)
+            captions = [(t0, f"The robot is placing the {_pretty(obj)} ({i + 1} of {len(events)})")
+                        for i, (t0, obj) in enumerate(zip(starts, events, strict=True))]
+            write_atomically(viser_path(self.data_dir, rid), self._studio_of(world).render(
+                recording, captions, speed=self.speed))
+            worked = ExecutionPlan(events, tuple(world.trace), tuple((end - start) / self.speed for end in ends),
+                                   viewable=True)
+        finally:
+            world.close()
+        with self._lock:
+            if len(self._plans) >= 64:
+                self._plans.pop(next(iter(self._plans)))
+            self._plans[memo] = worked
+        return worked
+
+    def _studio_of(self, world: MujocoWorld) -> Studio:
+        with self._lock:
+            if self._studio is None:
+                self._studio = Studio(world.model)
+            return self._studio
 
     def progress(self, key: str) -> RobotProgress | None:
         """The execution's labels for the actions shown so far, and whether all have been shown."""
@@ -228,6 +276,8 @@ class MujocoRobot:
             self._tables.clear()
         for table in tables:
             self._shut(table)
+        if self._studio is not None:
+            self._studio.close()
 
     # -- internals -----------------------------------------------------------------------------------
     def _get(self, key: str) -> _Table | None:

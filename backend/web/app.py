@@ -10,7 +10,7 @@ from fastapi import FastAPI
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
-from . import analysis, dashboard, viewer
+from . import analysis, dashboard, motion, viewer
 from .auth import experimenter_checker
 
 DESCRIPTION = """Study server for teaching a robot to set a dinner table from demonstrations and verdicts.
@@ -40,6 +40,6 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.experimenter = checker
     app.state.dev_token = dev_token
     errors.install(app)
-    for module in (participants, studies, exports, analysis, dashboard, viewer, pages):
+    for module in (participants, studies, exports, analysis, dashboard, motion, viewer, pages):
         app.include_router(module.router)
     return app
