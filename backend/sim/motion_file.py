@@ -20,6 +20,9 @@ from .recordings import FOLDER, RecordingId
 from .view import SceneView
 
 SUFFIX = ".viser"
+# viser's player starts a recording again once it reaches its end; holding the last pose this long keeps a
+# finished execution still on screen (the participant judges it) instead of replaying it by itself.
+HOLD_SECONDS = 600.0
 
 
 def viser_path(data_dir: Path | str, rid: RecordingId) -> Path:
@@ -57,6 +60,7 @@ class Studio:
                     view.set_caption(pending.pop(0)[1])
                 view.set_poses(recording.bodies, poses)
             view.set_caption("")
+            serializer.insert_sleep(HOLD_SECONDS)
             return serializer.serialize()
 
     def close(self) -> None:
