@@ -34,6 +34,21 @@ def plan(ctx: Context, key: str, rid: RecordingId, events: list[str]) -> dict[st
             "viewable": worked.viewable}
 
 
+def prepare_ahead(ctx: Context, key: str, participant_id: int, task_index: int, state_json: str) -> None:
+    """Once the robot's next turn is planned, let the robot work its execution out in the background (the MuJoCo
+    robot simulates and records it), so that starting the execution seconds later costs the request nothing."""
+    prepare = getattr(ctx.robot, "prepare", None)
+    if prepare is None:
+        return
+
+    def use(step: Any) -> None:
+        if step.robot_execution is not None:
+            rid = RecordingId(participant_id, task_index, step.kind, step.index)
+            prepare(key, list(step.robot_execution.events), rid.name)
+
+    ctx.planner.then(state_json, use)
+
+
 def started_at(execution: dict[str, Any]) -> datetime:
     """When the execution's motion started (its plan's clock)."""
     start = aware(datetime.fromisoformat(execution["started_at"]))

@@ -235,6 +235,9 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
             repo.commit(s)
             if action.plan_ahead is not None:
                 ctx.planner.plan_ahead(action.plan_ahead)
+                ts_index = participant.task_index
+                executions.prepare_ahead(ctx, robot_key(participant, ts_index), participant.id, ts_index,
+                                         action.plan_ahead)
             return state_view(s, participant, study)
         except Conflict as exc:
             conflict = exc

@@ -17,6 +17,7 @@ import time
 import zlib
 from collections import deque
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 from ..robot import ExecutionPlan, RobotActivity, RobotProgress
@@ -89,6 +90,8 @@ class MujocoRobot:
         self._closing = threading.Event()
         self._studio: Studio | None = None
         self._plans: dict[tuple[str, tuple[str, ...], str], ExecutionPlan] = {}  # the last few, see plan_execution
+        self._preparing: dict[tuple[str, tuple[str, ...], str], Future[ExecutionPlan]] = {}
+        self._prep_pool: ThreadPoolExecutor | None = None
 
     # -- Robot -------------------------------------------------------------------------------------
     def reset(self, key: str) -> Labels:
@@ -148,19 +151,46 @@ class MujocoRobot:
             self._refresh(table)
             self._start_player(table)
 
+    def prepare(self, key: str, events: Sequence[str], name: str) -> None:
+        """Start plan_execution in the background (the participant is still reading), unless it is made or under way."""
+        memo = (key, tuple(events), name)
+        with self._lock:
+            if memo in self._plans or memo in self._preparing or self._closing.is_set():
+                return
+            if self._prep_pool is None:
+                self._prep_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robot-prepare")
+            self._preparing[memo] = self._prep_pool.submit(self._work_out, key, tuple(events), name)
+
     def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
         """Simulate the whole execution on a fresh copy of the table and save it (.npz, .json and a .viser file).
 
-        Nothing is shown live: the browser plays the .viser file. The same call again (e.g. warming up
-        before a transaction, then inside it) returns the plan already made.
+        Nothing is shown live: the browser plays the .viser file. An execution already worked out (or being
+        worked out, see prepare) is not simulated again.
         """
         events = tuple(events)
-        rid = RecordingId.parse(name)
         memo = (key, events, name)
         with self._lock:
-            known = self._plans.get(memo)
-        if known is not None and viser_path(self.data_dir, rid).exists():
+            known, preparing = self._plans.get(memo), self._preparing.get(memo)
+        if known is not None and viser_path(self.data_dir, RecordingId.parse(name)).exists():
             return known
+        if preparing is not None:
+            try:
+                return preparing.result()
+            except Exception:  # noqa: BLE001 - worked out again below, where the error reaches the caller
+                log.warning("preparing execution %s failed; working it out again", name, exc_info=True)
+        return self._work_out(key, events, name)
+
+    def _work_out(self, key: str, events: tuple[str, ...], name: str) -> ExecutionPlan:
+        rid = RecordingId.parse(name)
+        memo = (key, events, name)
+        try:
+            return self._simulate(key, events, rid, memo)
+        finally:
+            with self._lock:
+                self._preparing.pop(memo, None)
+
+    def _simulate(self, key: str, events: tuple[str, ...], rid: RecordingId,
+                  memo: tuple[str, tuple[str, ...], str]) -> ExecutionPlan:
         world = MujocoWorld(table_seed(key))
         try:
             check_sequence(events, world.objects)  # refuse the whole request before anything moves
@@ -182,7 +212,7 @@ class MujocoRobot:
         finally:
             world.close()
         with self._lock:
-            if len(self._plans) >= 64:
+            if len(self._plans) >= 1024:
                 self._plans.pop(next(iter(self._plans)))
             self._plans[memo] = worked
         return worked
@@ -276,6 +306,8 @@ class MujocoRobot:
             self._tables.clear()
         for table in tables:
             self._shut(table)
+        if self._prep_pool is not None:
+            self._prep_pool.shutdown(wait=True, cancel_futures=True)
         if self._studio is not None:
             self._studio.close()
 
