@@ -136,7 +136,8 @@ def database(url: str | None) -> Iterator[str]:
 
 
 @contextmanager
-def app_processes(k: int, url: str, folder: Path, token: str, robot: str, speed: float) -> Iterator[list[Any]]:
+def app_processes(k: int, url: str, folder: Path, logs: Path, token: str, robot: str,
+                  speed: float) -> Iterator[list[Any]]:
     """K `tableteach serve` processes on one database and one recording store; stopped on exit."""
     env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": token, "TABLETEACH_ROBOT": robot,
            "TABLETEACH_ROBOT_SPEED": str(speed), "TABLETEACH_DATA_DIR": str(folder / "data")}
@@ -145,7 +146,7 @@ def app_processes(k: int, url: str, folder: Path, token: str, robot: str, speed:
     try:
         for i in range(k):
             port = _free_port()
-            log = open(folder / f"app-{i}.log", "wb")
+            log = open(logs / f"app-{i}.log", "wb")
             proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "serve", "--port", str(port),
                                      "--database-url", url], env=env, stdout=log, stderr=subprocess.STDOUT)
             proc.url = f"http://127.0.0.1:{port}"  # type: ignore[attr-defined]
@@ -154,7 +155,7 @@ def app_processes(k: int, url: str, folder: Path, token: str, robot: str, speed:
             deadline = time.monotonic() + 60
             while True:
                 if proc.poll() is not None:
-                    raise RuntimeError(f"an app process exited with {proc.returncode}; see {folder}/app-*.log")
+                    raise RuntimeError(f"an app process exited with {proc.returncode}; see {logs}/app-*.log")
                 try:
                     if httpx.get(f"{proc.url}/healthz", timeout=1).status_code == 200:  # type: ignore[attr-defined]
                         break
@@ -375,6 +376,7 @@ def main(argv: list[str] | None = None) -> int:
 
     with ExitStack() as stack:
         folder = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="bench-scale-")))
+        logs = Path(tempfile.mkdtemp(prefix="bench-scale-logs-"))  # kept: the app processes' logs
         print(f"database: {'given URL' if args.database_url else 'starting a throwaway PostgreSQL'}", flush=True)
         url = stack.enter_context(database(args.database_url))
         from tableteach.db.migrate import upgrade_head
@@ -382,7 +384,8 @@ def main(argv: list[str] | None = None) -> int:
         upgrade_head(url)  # once, before the processes start (each would otherwise race to do it)
         db = Database(url)
         print(f"starting {args.processes} app process(es) ({args.robot} robot, speed {args.robot_speed})", flush=True)
-        procs = stack.enter_context(app_processes(args.processes, url, folder, token, args.robot, args.robot_speed))
+        procs = stack.enter_context(app_processes(args.processes, url, folder, logs, token, args.robot,
+                                                  args.robot_speed))
         urls = [p.url for p in procs]
         spec = {"name": "scale benchmark", "tasks": [{"key": "task1"}], "conditions": ["active"], "n_practice": 0,
                 "n_demonstrations": 2, "n_queries": 2, "n_tests": 1,
@@ -428,6 +431,7 @@ def main(argv: list[str] | None = None) -> int:
               f"p50 {1000 * np.percentile(waits, 50):.0f} ms, max {1000 * waits.max():.0f} ms")
     for error in results.errors[:10]:
         print("error:", error)
+    print(f"app process logs: {logs}")
     stall = max((max(w["max_gap"], w["wait"]) for w in results.watched), default=0.0)
     fps_ok = args.robot == "trace" or (bool(results.watched) and min_fps >= TARGET_FPS and stall <= TARGET_STALL_S)
     ok = (p99 < TARGET_P99_MS and not results.errors and results.completed == args.participants and fps_ok)

@@ -6,7 +6,7 @@ import hashlib
 import json
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from ..core import session as core
@@ -16,7 +16,7 @@ from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
 from ..sim.recordings import RecordingId
 from . import executions
-from .context import Context, app_version, commit, iso
+from .context import Context, app_version, iso
 from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
@@ -58,14 +58,17 @@ def current_task(s: Any, participant: ParticipantRow) -> TaskSessionRow | None:
 def sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskSessionRow) -> bool:
     """Record a running execution that has finished by its stored clock; True if the stored state changed.
 
-    The plan and start time are in the database (services.executions), so any process answers alike.
-    An execution stored without a plan (started by an older version) gets one now, starting now.
+    The plan and start time are in the database (services.executions), so any process answers alike. An
+    execution whose plan is overdue (its process died while working it out) or that was stored without one
+    by an older version is worked out here, starting now.
     """
     execution = ts.execution
     if execution is None or execution["status"] != "running":
         return False
     changed = False
     if execution.get("plan") is None:
+        if execution.get("recorded") and not executions.overdue(execution):
+            return False  # still being worked out in the background
         rid = RecordingId(participant.id, ts.task_index, execution["kind"], execution["index"])
         execution = {**execution, "plan": executions.plan(ctx, robot_key(participant, ts.task_index), rid,
                                                            execution["events"]),
@@ -150,19 +153,26 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
         participant, study = participant_and_study(s, token)
         ts = current_task(s, participant)
         ex = ts.execution if ts is not None else None
-        # Only a running execution that has just finished (or has no stored plan yet) is written.
+        # Only a running execution that has just finished (or needs working out here) is written.
         needs_write = ex is not None and ex["status"] == "running" and (
-            ex.get("plan") is None or executions.progress(ex).finished)
+            executions.progress(ex).finished if ex.get("plan") is not None
+            else not ex.get("recorded") or executions.overdue(ex))
         if not needs_write:
             if ts is not None and ts.execution is None:
                 ctx.planner.plan_ahead(ts.state_json)  # e.g. after a restart, before the participant asks
             return state_view(s, participant, study)
-    with ctx.db.write() as s:
-        participant, study = participant_and_study(s, token)
-        ts = current_task(s, participant)
-        if ts is not None and sync_execution(ctx, s, participant, ts):
-            commit(s)
-        return state_view(s, participant, study)
+    try:
+        with ctx.db.write() as s:
+            participant, study = participant_and_study(s, token)
+            ts = current_task(s, participant)
+            if ts is not None and sync_execution(ctx, s, participant, ts):
+                repo.commit(s)
+            return state_view(s, participant, study)
+    except repo.WriteConflict:
+        # Another request (the page's poll, another process) recorded the same finish first: show what it stored.
+        with ctx.db.read() as s:
+            participant, study = participant_and_study(s, token)
+            return state_view(s, participant, study)
 
 
 def participant_and_study(s: Any, token: str) -> tuple[ParticipantRow, StudyRow]:
@@ -197,6 +207,7 @@ class Action:
     digest: str | None
     n_logged: int = 0
     plan_ahead: str | None = None  # a stored state whose robot turn can be planned once this commits
+    after_commit: list[Callable[[], None]] = field(default_factory=list)  # background work once committed
 
     def log(self, kind: str, payload: dict[str, Any], *, task_index: int | None = None,
             step_kind: str | None = None, step_index: int | None = None) -> None:
@@ -233,6 +244,8 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
             action = Action(ctx, s, participant, study, key, digest)
             run(action)
             repo.commit(s)
+            for then in action.after_commit:
+                then()
             if action.plan_ahead is not None:
                 ctx.planner.plan_ahead(action.plan_ahead)
                 ts_index = participant.task_index

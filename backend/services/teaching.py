@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import logging
 import secrets
 from typing import Any
 
@@ -14,13 +13,11 @@ from ..errors import Conflict, InvalidInput
 from ..sim.recordings import RecordingId
 from . import executions
 from .context import Context
-from .planning import ROBOT_TURNS, position_of, session_of
+from .planning import ROBOT_TURNS, session_of
 from .state import (
     Action,
     Expect,
     act,
-    current_task,
-    participant_and_study,
     require_stage,
     robot_key,
     save_recording,
@@ -28,7 +25,6 @@ from .state import (
     sync_execution,
 )
 
-log = logging.getLogger(__name__)
 
 
 def begin_task(a: Action, task_index: int) -> None:
@@ -114,29 +110,8 @@ def finish_demonstration(ctx: Context, token: str, *, expect: Expect, key: str |
     return act(ctx, token, "finish", dict(expect.__dict__), key, run)
 
 
-def _work_out_ahead(ctx: Context, token: str) -> None:
-    """Plan and simulate the execution about to start before the write transaction, so the transaction stays
-    short (the robot keeps what it worked out); any problem is left for the transaction to report."""
-    try:
-        with ctx.db.read() as s:
-            participant, _study = participant_and_study(s, token)
-            ts = current_task(s, participant)
-            if ts is None or ts.execution is not None or position_of(ts.state_json)[0] not in ROBOT_TURNS:
-                return
-            pid, task_index, state_json = participant.id, ts.task_index, ts.state_json
-            robot = robot_key(participant, task_index)
-        step = ctx.planner.step(state_json)
-        if step.robot_execution is not None:
-            executions.plan(ctx, robot, RecordingId(pid, task_index, step.kind, step.index),
-                            list(step.robot_execution.events))
-    except Exception:  # noqa: BLE001 - the transaction does the same work and reports any error
-        log.debug("could not work the execution out ahead", exc_info=True)
-
-
 def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None = None) -> dict[str, Any]:
     """The robot carries out the current query or test execution (starting it twice is harmless)."""
-    _work_out_ahead(ctx, token)
-
     def run(a: Action) -> None:
         ts, state, step = _teaching(a, expect, ("query", "test"))
         ex = ts.execution
@@ -147,10 +122,12 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
         assert step.robot_execution is not None
         events = list(step.robot_execution.events)
         rid = RecordingId(a.participant.id, ts.task_index, step.kind, step.index)
-        worked = executions.plan(a.ctx, robot_key(a.participant, ts.task_index), rid, events)
+        robot = robot_key(a.participant, ts.task_index)
         ts.execution = {"kind": step.kind, "index": step.index, "events": events, "status": "running",
-                        "trace": None, "p_acceptable": step.p_acceptable, "started_at": utcnow().isoformat(),
-                        "plan": worked}
+                        "trace": None, "p_acceptable": step.p_acceptable,
+                        **executions.begin(a.ctx, robot, rid, events)}
+        if ts.execution["plan"] is None:
+            a.after_commit.append(lambda: executions.work_out_in_background(a.ctx, robot, rid, events))
         a.log("execution_started", {"events": events, "p_acceptable": step.p_acceptable},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
         sync_execution(a.ctx, a.s, a.participant, ts)

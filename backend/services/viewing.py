@@ -68,7 +68,8 @@ def current_motion(ctx: Context, token: str) -> RecordingId | None:
             return None
         ex = ts.execution
         kind, index, _ = position_of(ts.state_json)
-        if (ex["kind"], ex["index"]) != (kind, index) or not (ex.get("plan") or {}).get("viewable"):
+        recorded = ex.get("recorded") or (ex.get("plan") or {}).get("viewable")
+        if (ex["kind"], ex["index"]) != (kind, index) or not recorded:
             return None
         return RecordingId(participant.id, ts.task_index, kind, index)
 
@@ -93,7 +94,7 @@ def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
     activity = robot.activity(key) if viewing and key is not None else None
     out = {"view": viewing, "moving": bool(activity and activity.moving),
            "caption": activity.caption if activity else "", "watchers": activity.watchers if activity else 0}
-    if ex is not None and ex["status"] == "running" and ex.get("plan") is not None:
+    if ex is not None and ex["status"] == "running":
         # An execution's progress is in the database, whichever process started it.
         progress = executions.progress(ex)
         out.update(moving=not progress.finished, caption=progress.caption)

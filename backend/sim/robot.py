@@ -151,15 +151,23 @@ class MujocoRobot:
             self._refresh(table)
             self._start_player(table)
 
-    def prepare(self, key: str, events: Sequence[str], name: str) -> None:
-        """Start plan_execution in the background (the participant is still reading), unless it is made or under way."""
+    def prepare(self, key: str, events: Sequence[str], name: str) -> Future[ExecutionPlan]:
+        """plan_execution in the background: the plan already made, the one under way, or a new one."""
         memo = (key, tuple(events), name)
         with self._lock:
-            if memo in self._plans or memo in self._preparing or self._closing.is_set():
-                return
+            known = self._plans.get(memo)
+            if known is not None and viser_path(self.data_dir, RecordingId.parse(name)).exists():
+                done: Future[ExecutionPlan] = Future()
+                done.set_result(known)
+                return done
+            if memo in self._preparing:
+                return self._preparing[memo]
+            if self._closing.is_set():
+                raise RuntimeError("the robot is shutting down: expected no new executions")
             if self._prep_pool is None:
                 self._prep_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robot-prepare")
-            self._preparing[memo] = self._prep_pool.submit(self._work_out, key, tuple(events), name)
+            future = self._preparing[memo] = self._prep_pool.submit(self._work_out, key, tuple(events), name)
+            return future
 
     def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
         """Simulate the whole execution on a fresh copy of the table and save it (.npz, .json and a .viser file).

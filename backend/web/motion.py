@@ -3,10 +3,13 @@
 
 from __future__ import annotations
 
+import asyncio
+import time
 from urllib.parse import quote
 
 from fastapi import APIRouter
 from fastapi.responses import FileResponse, PlainTextResponse, Response
+from starlette.concurrency import run_in_threadpool
 
 from .. import services
 from ..errors import NotAuthenticated
@@ -15,7 +18,8 @@ from ..sim.recordings import RecordingId
 from .deps import ContextDep
 
 router = APIRouter(tags=["participant page"])
-STEP_KINDS_PATTERN = r"^(practice|demonstration|query|test)$"
+WAIT_SECONDS = 30.0  # executions.PREPARE_GRACE_SECONDS: by then some process has worked it out, or it failed
+POLL_SECONDS = 0.1
 
 
 def motion_path(token: str, rid: RecordingId) -> str:
@@ -29,16 +33,22 @@ def playback_url(token: str, rid: RecordingId) -> str:
 
 
 @router.get("/p/{token}/motion/task-{task_index}/{step_kind}-{step_index}.viser", include_in_schema=False)
-def motion_file(token: str, task_index: int, step_kind: str, step_index: int, ctx: ContextDep) -> Response:
-    """One recorded execution of this participant as a .viser file (cached by the browser: it never changes)."""
+async def motion_file(token: str, task_index: int, step_kind: str, step_index: int, ctx: ContextDep) -> Response:
+    """One recorded execution of this participant as a .viser file (cached by the browser: it never changes).
+
+    The page asks for it as soon as the execution starts; while the robot is still working it out (about a
+    second) the answer waits for the file, up to WAIT_SECONDS."""
     try:
-        participant_id = services.participant_id_of(ctx, token)
+        participant_id = await run_in_threadpool(services.participant_id_of, ctx, token)
         rid = RecordingId(participant_id, task_index, step_kind, step_index)
     except NotAuthenticated:
         return PlainTextResponse("No participant has this link.", status_code=404)
     except ValueError as exc:
         return PlainTextResponse(f"No such recording: {exc}", status_code=404)
     path = viser_path(ctx.settings.data_dir, rid)
+    deadline = time.monotonic() + WAIT_SECONDS
+    while not path.is_file() and time.monotonic() < deadline:
+        await asyncio.sleep(POLL_SECONDS)
     if not path.is_file():
         return PlainTextResponse(f"No recording of {step_kind} {step_index + 1} in task {task_index + 1} yet.",
                                  status_code=404)
