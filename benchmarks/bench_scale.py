@@ -9,13 +9,13 @@ as the sticky reverse proxy (deploy/nginx.conf) would route them. Each participa
 - demonstrates by placing objects one at a time, pausing --think seconds (x0.5-1.5) before each action;
 - lets the robot carry out each query and test and watches it: the page asks for the view (POST /me/view),
   gets the playback URL and downloads the execution's .viser file, which the browser would play. The
-  reader times the download (the wait before the motion can start) and reads the frame times inside
-  the file: its frame rate and its largest gap between frames;
+  reader times the wait for the file (the robot works the execution out first; its clock starts when it
+  is ready), the transfer, and reads the frame times inside the file: its frame rate and largest gap;
 - polls GET /me and GET /me/robot every --poll seconds while at a task, and renews its tab lease every
   5 s, as the participant page does; then answers the questionnaire.
 
 Targets (exit status 0 only if all hold): every REST action's p99 under 200 ms, 0 errors, every session
-completed, every watched execution at 25 fps or more with no stall over 0.5 s (download wait or frame gap).
+completed, every watched execution at 25 fps or more with no stall over 0.5 s (transfer or frame gap).
 
 It prints progress every few seconds, then p50/p99 per action, CPU seconds per app process and per
 participant, the database's CPU and transactions, and last:
@@ -54,6 +54,7 @@ TARGET_FPS = 25.0
 TARGET_STALL_S = 0.5
 TAB_RENEW_S = 5.0  # frontend/participant.js HEARTBEAT_MS
 POSE_MESSAGES = ("SetPositionMessage", "SetOrientationMessage")
+MUJOCO_SECONDS_PER_OBJECT = 5.6  # one pick-and-place of the MuJoCo arm at speed 1
 
 
 # ----------------------------------------------------------------------------------------------- servers
@@ -140,7 +141,9 @@ def app_processes(k: int, url: str, folder: Path, logs: Path, token: str, robot:
                   speed: float) -> Iterator[list[Any]]:
     """K `tableteach serve` processes on one database and one recording store; stopped on exit."""
     env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": token, "TABLETEACH_ROBOT": robot,
-           "TABLETEACH_ROBOT_SPEED": str(speed), "TABLETEACH_DATA_DIR": str(folder / "data")}
+           "TABLETEACH_ROBOT_SPEED": str(speed), "TABLETEACH_DATA_DIR": str(folder / "data"),
+           # The trace robot takes as long per object as the MuJoCo arm, so people wait as long for it.
+           "TABLETEACH_ROBOT_SECONDS_PER_OBJECT": str(MUJOCO_SECONDS_PER_OBJECT / speed)}
     env.pop("TABLETEACH_DEV_MODE", None)
     procs = []
     try:
@@ -189,8 +192,9 @@ class Results:
     def rest(self, action: str, seconds: float) -> None:
         self.latencies.setdefault(action, []).append(seconds)
 
-    def all_latencies(self) -> np.ndarray:
-        return np.array([x for xs in self.latencies.values() for x in xs])
+    def rest_latencies(self) -> np.ndarray:
+        """Every REST action's latency (the recording download, which waits for the robot, is not one)."""
+        return np.array([x for name, xs in self.latencies.items() if name != "recording" for x in xs])
 
 
 def viser_frames(data: bytes) -> list[float]:
@@ -319,16 +323,21 @@ class Participant:
         from urllib.parse import parse_qs, urlparse
 
         path = parse_qs(urlparse(url).query)["playbackPath"][0]
-        response = await self.http.get(path)
-        waited = time.perf_counter() - started
+        # The answer waits until the robot has worked the execution out; then the file is transferred.
+        async with self.http.stream("GET", path) as response:
+            ready = time.perf_counter()
+            body = await response.aread()
+        done = time.perf_counter()
+        self.results.rest("recording", ready - started)
         if response.status_code != 200:
             self.results.errors.append(f"GET recording: HTTP {response.status_code}")
             return
-        frames = viser_frames(response.content)
+        frames = viser_frames(body)
         gaps = np.diff(frames) if len(frames) > 1 else np.array([0.0])
         duration = frames[-1] - frames[0] if len(frames) > 1 else 0.0
         self.results.watched.append({"fps": (len(frames) - 1) / duration if duration > 0 else 0.0,
-                                     "max_gap": float(gaps.max()), "wait": waited})
+                                     "max_gap": float(gaps.max()), "wait": ready - started,
+                                     "transfer": done - ready})
 
 
 async def run_participants(n: int, urls: list[str], study_id: str, think: float, poll: float, ramp: float,
@@ -347,7 +356,7 @@ async def run_participants(n: int, urls: list[str], study_id: str, think: float,
     started = time.monotonic()
     while not all(t.done() for t in tasks):
         await asyncio.wait(tasks, timeout=5.0)
-        lat = results.all_latencies()
+        lat = results.rest_latencies()
         p99 = float(np.percentile(lat, 99)) * 1000 if len(lat) else 0.0
         print(f"  {time.monotonic() - started:6.0f} s: {results.completed}/{n} done, {len(lat)} requests, "
               f"p99 so far {p99:.0f} ms, {len(results.watched)} executions watched, {len(results.errors)} errors",
@@ -362,7 +371,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--processes", type=int, default=1)
     parser.add_argument("--database-url", default=None,
                         help="a PostgreSQL SQLAlchemy URL (default: a throwaway cluster, as the tests use)")
-    parser.add_argument("--robot", choices=("mujoco", "trace"), default="mujoco")
+    parser.add_argument("--robot", choices=("mujoco", "trace"), default="mujoco",
+                        help="trace: no physics or recordings (REST load only), 5.6 s per object like the arm")
     parser.add_argument("--robot-speed", type=float, default=1.0, help="1 = real time (an action takes ~5.6 s)")
     parser.add_argument("--think", type=float, default=3.0, help="mean seconds a person takes before each action")
     parser.add_argument("--poll", type=float, default=1.0, help="seconds between the page's refreshes")
@@ -405,7 +415,7 @@ def main(argv: list[str] | None = None) -> int:
         cpu = [_cpu_seconds(p.pid) - before for p, before in zip(procs, cpu_before, strict=True)]
         db_cpu_after, xacts = db.cpu_seconds(), db.transactions() - xacts_before
 
-    lat = results.all_latencies()
+    lat = results.rest_latencies()
     p99 = float(np.percentile(lat, 99)) * 1000 if len(lat) else float("inf")
     print(f"\n{results.completed}/{args.participants} sessions completed in {wall:.0f} s; {len(lat)} REST requests "
           f"({len(lat) / wall:.1f}/s)")
@@ -426,13 +436,16 @@ def main(argv: list[str] | None = None) -> int:
     min_fps = min((w["fps"] for w in results.watched), default=0.0)
     if results.watched:
         waits = np.array([w["wait"] for w in results.watched])
+        transfers = np.array([w["transfer"] for w in results.watched])
         print(f"watched {len(results.watched)} executions: recording fps min {min_fps:.1f}, largest frame gap "
-              f"{1000 * max(w['max_gap'] for w in results.watched):.0f} ms; wait from start to recording "
-              f"p50 {1000 * np.percentile(waits, 50):.0f} ms, max {1000 * waits.max():.0f} ms")
+              f"{1000 * max(w['max_gap'] for w in results.watched):.0f} ms, transfer p50 "
+              f"{1000 * np.percentile(transfers, 50):.0f} ms max {1000 * transfers.max():.0f} ms; from the start "
+              f"click to the recording ready (the motion's clock starts then): p50 "
+              f"{1000 * np.percentile(waits, 50):.0f} ms, max {1000 * waits.max():.0f} ms")
     for error in results.errors[:10]:
         print("error:", error)
     print(f"app process logs: {logs}")
-    stall = max((max(w["max_gap"], w["wait"]) for w in results.watched), default=0.0)
+    stall = max((max(w["max_gap"], w["transfer"]) for w in results.watched), default=0.0)
     fps_ok = args.robot == "trace" or (bool(results.watched) and min_fps >= TARGET_FPS and stall <= TARGET_STALL_S)
     ok = (p99 < TARGET_P99_MS and not results.errors and results.completed == args.participants and fps_ok)
     print(f"targets: rest p99 < {TARGET_P99_MS:.0f} ms, fps >= {TARGET_FPS:.0f}, stall <= {TARGET_STALL_S} s, "

@@ -26,7 +26,6 @@ from .state import (
 )
 
 
-
 def begin_task(a: Action, task_index: int) -> None:
     a.participant.stage = "task"
     a.participant.task_index = task_index
