@@ -14,6 +14,7 @@ hosts need synchronised clocks (NTP).
 from __future__ import annotations
 
 import logging
+import threading
 import time
 from concurrent.futures import Future
 from dataclasses import dataclass
@@ -67,7 +68,13 @@ def begin(ctx: Context, key: str, rid: RecordingId, events: list[str]) -> dict[s
 def work_out_in_background(ctx: Context, key: str, rid: RecordingId, events: list[str]) -> None:
     """Have the robot work the stored execution out and store its plan when ready (call after the commit)."""
     future: Future[ExecutionPlan] = ctx.robot.prepare(key, events, rid.name)  # type: ignore[attr-defined]
-    future.add_done_callback(lambda done: _store_plan(ctx, rid, events, done))
+
+    def store(done: Future[ExecutionPlan]) -> None:
+        # Always on a thread of its own: a plan made ahead is done already, and its callback would then run
+        # here, in the request, which may still hold the database's write lock (SQLite).
+        threading.Thread(target=_store_plan, args=(ctx, rid, events, done), name="store-plan", daemon=True).start()
+
+    future.add_done_callback(store)
 
 
 def _store_plan(ctx: Context, rid: RecordingId, events: list[str], done: Future[ExecutionPlan]) -> None:

@@ -31,6 +31,9 @@ class SlowRobot(TraceRobot):
     def prepare(self, key: str, events: Sequence[str], name: str) -> Future[ExecutionPlan]:
         future: Future[ExecutionPlan] = Future()
         self.prepared.append(name)
+        if self.release_plans.is_set():  # worked out ahead: done by the time the execution starts
+            future.set_result(self.plan_execution(key, events, name))
+            return future
 
         def work() -> None:
             if self.release_plans.wait(10):
@@ -133,3 +136,18 @@ def test_a_plan_that_never_comes_is_worked_out_by_a_later_request(slow_client) -
     slow_client.ctx.robot.release_plans.set()  # the late background plan must not overwrite the stored one
     time.sleep(0.2)
     assert _stored_execution(slow_client, token)["status"] == "finished"
+
+
+def test_a_plan_made_ahead_is_stored_without_blocking_the_request_that_starts_it(slow_client) -> None:
+    token = _to_first_query(slow_client)
+    slow_client.ctx.robot.release_plans.set()  # prepare() now answers with a finished plan
+    answers: list[Any] = []
+    request = threading.Thread(target=lambda: answers.append(
+        slow_client.post("/api/v1/me/execution", headers=bearer(token))), daemon=True)
+    request.start()
+    request.join(timeout=10)
+    assert answers and answers[0].status_code == 200, "starting the execution hung"
+    deadline = time.monotonic() + 10
+    while _stored_execution(slow_client, token)["plan"] is None:
+        assert time.monotonic() < deadline, "the plan made ahead was never stored"
+        time.sleep(0.02)
