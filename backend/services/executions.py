@@ -6,7 +6,8 @@ mid-execution loses nothing (the execution's clock keeps running in the database
 A robot that needs time to work an execution out (the MuJoCo robot simulates and records it: about a
 second) does so in the background: the request that starts the execution stores it without a plan and
 answers at once; the plan is stored when ready, and its clock starts then. If the process working it out
-dies, any process works it out again once PREPARE_GRACE_SECONDS have passed (executions are
+dies, the next process asked about the execution starts working it out in the background, and any
+process works it out in the request once PREPARE_GRACE_SECONDS have passed (executions are
 deterministic, so the result is the same). Times are UTC wall-clock times: app processes on several
 hosts need synchronised clocks (NTP).
 """
@@ -65,16 +66,36 @@ def begin(ctx: Context, key: str, rid: RecordingId, events: list[str]) -> dict[s
     return {"plan": plan(ctx, key, rid, events), "started_at": now}
 
 
+_storing: set[tuple[int, str]] = set()  # (robot, recording) whose plan this process is waiting to store
+_storing_lock = threading.Lock()
+
+
 def work_out_in_background(ctx: Context, key: str, rid: RecordingId, events: list[str]) -> None:
-    """Have the robot work the stored execution out and store its plan when ready (call after the commit)."""
-    future: Future[ExecutionPlan] = ctx.robot.prepare(key, events, rid.name)  # type: ignore[attr-defined]
+    """Have the robot work the stored execution out and store its plan when ready (after the commit; again by
+    any process asked about an execution still without a plan, e.g. after the one working it out died)."""
+    waiting = (id(ctx.robot), rid.name)
+    with _storing_lock:
+        if waiting in _storing:
+            return
+        _storing.add(waiting)
+    try:
+        future: Future[ExecutionPlan] = ctx.robot.prepare(key, events, rid.name)  # type: ignore[attr-defined]
+    except Exception:
+        with _storing_lock:
+            _storing.discard(waiting)
+        raise
 
     def store(done: Future[ExecutionPlan]) -> None:
-        # Always on a thread of its own: a plan made ahead is done already, and its callback would then run
-        # here, in the request, which may still hold the database's write lock (SQLite).
-        threading.Thread(target=_store_plan, args=(ctx, rid, events, done), name="store-plan", daemon=True).start()
+        try:
+            _store_plan(ctx, rid, events, done)
+        finally:
+            with _storing_lock:
+                _storing.discard(waiting)
 
-    future.add_done_callback(store)
+    # Always on a thread of its own: a plan made ahead is done already, and its callback would then run
+    # here, in the request, which may still hold the database's write lock (SQLite).
+    future.add_done_callback(lambda done: threading.Thread(target=store, args=(done,), name="store-plan",
+                                                           daemon=True).start())
 
 
 def _store_plan(ctx: Context, rid: RecordingId, events: list[str], done: Future[ExecutionPlan]) -> None:

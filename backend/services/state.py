@@ -160,6 +160,8 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
         if not needs_write:
             if ts is not None and ts.execution is None:
                 ctx.planner.plan_ahead(ts.state_json)  # e.g. after a restart, before the participant asks
+            elif ex is not None and ex["status"] == "running" and ex.get("plan") is None:
+                _resume_working_out(ctx, participant, ts.task_index, ex)
             return state_view(s, participant, study)
     try:
         with ctx.db.write() as s:
@@ -173,6 +175,17 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
         with ctx.db.read() as s:
             participant, study = participant_and_study(s, token)
             return state_view(s, participant, study)
+
+
+def _resume_working_out(ctx: Context, participant: ParticipantRow, task_index: int, ex: dict[str, Any]) -> None:
+    """An execution still being worked out, perhaps by a process that has died: work it out here too (the robot
+    skips it if it is already doing so). Never fails the request that only asked for the state."""
+    try:
+        executions.work_out_in_background(ctx, robot_key(participant, task_index),
+                                          RecordingId(participant.id, task_index, ex["kind"], ex["index"]),
+                                          list(ex["events"]))
+    except Exception:  # noqa: BLE001 - the overdue path in sync_execution works it out in the end
+        log.warning("could not resume working out an execution", exc_info=True)
 
 
 def participant_and_study(s: Any, token: str) -> tuple[ParticipantRow, StudyRow]:

@@ -151,3 +151,18 @@ def test_a_plan_made_ahead_is_stored_without_blocking_the_request_that_starts_it
     while _stored_execution(slow_client, token)["plan"] is None:
         assert time.monotonic() < deadline, "the plan made ahead was never stored"
         time.sleep(0.02)
+
+
+def test_a_process_asked_about_an_execution_another_was_working_out_takes_it_over(slow_client) -> None:
+    token = _to_first_query(slow_client)
+    assert slow_client.post("/api/v1/me/execution", headers=bearer(token)).status_code == 200
+    assert _stored_execution(slow_client, token)["plan"] is None  # the first "process" never finishes it
+    slow_client.ctx.robot = SlowRobot()  # another process, whose robot has never heard of the execution
+    slow_client.ctx.robot.release_plans.set()
+    state = slow_client.get("/api/v1/me", headers=bearer(token)).json()
+    assert state["execution"]["status"] == "running"
+    deadline = time.monotonic() + 5  # far sooner than the grace period
+    while _stored_execution(slow_client, token)["plan"] is None:
+        assert time.monotonic() < deadline, "the second process did not take the execution over"
+        time.sleep(0.02)
+    assert slow_client.ctx.robot.prepared == ["participant-1/task-0/query-0"]
