@@ -110,3 +110,41 @@ def test_a_session_moves_between_processes_and_survives_killing_the_one_running_
         for server in (a, b, c):
             if server is not None:
                 server.stop()
+
+
+def test_with_the_mujoco_robot_another_process_finishes_the_execution_and_serves_its_recording(
+    postgres_url: str, tmp_path: Path  # noqa: F811 - the fixture imported above
+) -> None:
+    robot = {"TABLETEACH_ROBOT": "mujoco", "TABLETEACH_ROBOT_SPEED": "4"}
+    shared = {"database_url": postgres_url, "TABLETEACH_DATA_DIR": str(tmp_path / "data"), **robot}
+    a = ServerProcess(tmp_path / "a.db", **shared).start()
+    b = ServerProcess(tmp_path / "b.db", **shared).start()
+    try:
+        study_id = open_study(a.url, study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=1,
+                                                n_tests=0))
+        partial = run_teacher(a.url, study_id, ["task1"], seed=3, stop_after=3)  # consent, instructions, demo
+        headers = {"Authorization": f"Bearer {partial.token}"}
+        started = httpx.post(f"{a.url}/api/v1/me/execution", headers=headers, timeout=30).json()
+        assert started["execution"]["status"] == "running"
+        deadline = time.monotonic() + 30
+        while not httpx.get(f"{b.url}/api/v1/me/robot", headers=headers).json()["caption"].startswith(
+                "The robot is placing"):
+            assert time.monotonic() < deadline, "the execution was never worked out"
+            time.sleep(0.1)
+        a.kill()  # mid-motion: a worked the execution out and started it
+
+        view = httpx.post(f"{b.url}/api/v1/me/view", headers=headers).json()
+        assert "playbackPath=" in view["url"]
+        recording = httpx.get(f"{b.url}/p/{partial.token}/motion/task-0/query-0.viser", timeout=30)
+        assert recording.status_code == 200 and len(recording.content) > 10_000
+        state = httpx.get(f"{b.url}/api/v1/me", headers=headers).json()
+        while state["execution"]["status"] != "finished":
+            assert time.monotonic() < deadline + 30, "the execution never finished after its process died"
+            time.sleep(0.1)
+            state = httpx.get(f"{b.url}/api/v1/me", headers=headers).json()
+        assert state["execution"]["events"] == started["execution"]["events"]
+        api = ParticipantClient(b.url, token=partial.token)
+        assert run_teacher(b.url, study_id, ["task1"], seed=3, client=api).completion_code
+    finally:
+        a.stop()
+        b.stop()
