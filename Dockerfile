@@ -1,4 +1,4 @@
-# The TableTeach study server. Built by docker-compose.yml (PostgreSQL + migrations + app).
+# The TableTeach study server. Built by docker-compose.yml (PostgreSQL + migrations + app processes + nginx).
 FROM python:3.11-slim
 
 ENV PYTHONDONTWRITEBYTECODE=1 PYTHONUNBUFFERED=1 PIP_NO_CACHE_DIR=1
@@ -13,7 +13,8 @@ COPY frontend ./frontend
 COPY sim_assets ./sim_assets
 RUN pip install -e . "psycopg[binary]>=3.1,<4"
 
-RUN useradd --create-home --uid 10001 tableteach && mkdir -p /app/var && chown tableteach /app/var
+# var/data exists and belongs to the app user, so a named volume mounted there (recordings) does too.
+RUN useradd --create-home --uid 10001 tableteach && mkdir -p /app/var/data && chown -R tableteach /app/var
 USER tableteach
 
 ENV TABLETEACH_HOST=0.0.0.0 TABLETEACH_PORT=8000

@@ -22,6 +22,21 @@ Labels = frozenset[str]
 
 
 @dataclass(frozen=True)
+class ExecutionPlan:
+    """A whole execution worked out before it is shown: the labels after each action and when each action ends.
+
+    `action_ends[i]` is the number of seconds after the start of the motion at which action i has been
+    shown; `viewable` is True when a recording of the motion (.viser) was saved for the browser to play.
+    Executions are deterministic given the table's key and the events, so any process computes the same plan.
+    """
+
+    events: tuple[str, ...]
+    trace: tuple[Labels, ...]
+    action_ends: tuple[float, ...]
+    viewable: bool = False
+
+
+@dataclass(frozen=True)
 class RobotProgress:
     """A robot execution: the intended objects, the labels observed so far, and whether it has finished."""
 
@@ -51,6 +66,14 @@ class Robot(Protocol):
 
     def progress(self, key: str) -> RobotProgress | None:
         """The execution under way or finished on this table, or None if the robot knows of none."""
+        ...
+
+    def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
+        """Work the whole execution out now (nothing is shown) and keep its recording as `name` if it records any.
+
+        ValueError names the first object that cannot be placed. The server stores the plan in the database,
+        so any app process can say how far the execution has got (tableteach.services.executions).
+        """
         ...
 
     def release(self, key: str) -> None:
@@ -140,6 +163,15 @@ class TraceRobot:
         with self._lock:
             self._tables[key] = _Table(placed=list(events), execution=tuple(events), trace=trace,
                                        started=time.monotonic())
+
+    def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
+        """The execution's trace, one action per seconds_per_object; ValueError names an object it cannot place."""
+        history: tuple[str, ...] = ()
+        for obj in events:
+            history = self.domain.step(history, obj)
+        events = tuple(events)
+        ends = tuple(self.seconds_per_object * (i + 1) for i in range(len(events)))
+        return ExecutionPlan(events, tuple(self.domain.trace_of(events)), ends)
 
     def progress(self, key: str) -> RobotProgress | None:
         """The execution's labels so far and whether it has finished."""

@@ -220,6 +220,8 @@ el.frame.addEventListener("load", () => {
 
 function watchViewer() {
   if (!viewer.url || state?.stage !== "task") return;
+  // A recorded execution plays from a file in the browser: no live connection to watch over.
+  if (viewer.url.includes("playbackPath=")) return;
   if (live.watchers > 0) {
     viewer.noWatcherSince = null;
   } else if (viewer.noWatcherSince === null) {

@@ -1,11 +1,13 @@
 #!/usr/bin/env bash
-# Quickstart 2: set up (Python packages, Debian's Chromium and PostgreSQL) and run the whole test suite.
+# Quickstart 2: set up (Python packages, Debian's Chromium, PostgreSQL and nginx) and run the whole test suite.
 source "$(dirname "${BASH_SOURCE[0]}")/_env.sh"
 
-# Debian packages the tests use: Chromium for the browser tests, PostgreSQL for the database tests.
+# Debian packages the tests use: Chromium for the browser tests, PostgreSQL for the database tests, nginx for
+# the reverse-proxy test of the multi-process deployment.
 missing=()
 [ -x /usr/bin/chromium ] || missing+=(chromium)
 compgen -G "/usr/lib/postgresql/*/bin/initdb" >/dev/null || missing+=(postgresql)
+[ -x /usr/sbin/nginx ] || missing+=(nginx-light)
 if [ ${#missing[@]} -gt 0 ]; then
   echo "==> installing Debian packages: ${missing[*]}"
   sudo=""

@@ -49,7 +49,7 @@ from .studies import (
     update_study,
 )
 from .teaching import assess_execution, finish_demonstration, place_object, start_execution
-from .viewing import claim_tab, open_viewer, release_tab, robot_activity
+from .viewing import claim_tab, current_motion, open_viewer, participant_uid_of, release_tab, robot_activity
 
 __all__ = [
     "CODEBOOK_COLUMNS",
@@ -92,6 +92,7 @@ __all__ = [
     "assess_execution",
     "belief_summary",
     "claim_tab",
+    "current_motion",
     "close_study",
     "create_study",
     "delete_recordings",
@@ -105,6 +106,7 @@ __all__ = [
     "list_studies",
     "open_study",
     "open_viewer",
+    "participant_uid_of",
     "participant_state",
     "place_object",
     "release_tab",

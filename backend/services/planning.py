@@ -87,6 +87,19 @@ class Planner:
             self._remember(state_json, done)
         return step
 
+    def then(self, state_json: str, use: Callable[[core.Step], None]) -> None:
+        """Once this state's robot turn is planned (ahead), call use(step) on the planner's thread; never raises."""
+        def run() -> None:
+            try:
+                use(self.step(state_json))
+            except Exception:  # noqa: BLE001 - work done ahead only saves time; the request redoes it
+                log.warning("work after planning ahead failed", exc_info=True)
+
+        with self._lock:
+            if self._closed:
+                return
+            self._pool.submit(run)
+
     def _remember(self, state_json: str, future: Future[core.Step]) -> None:
         self._plans[state_json] = future
         self._plans.move_to_end(state_json)

@@ -6,7 +6,7 @@ import hashlib
 import json
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 from ..core import session as core
@@ -16,7 +16,8 @@ from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
 from ..sim import recordings
 from ..sim.recordings import RecordingId
-from .context import Context, app_version, aware, commit, iso
+from . import executions
+from .context import Context, app_version, aware, iso
 from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
@@ -94,22 +95,29 @@ def current_task(s: Any, participant: ParticipantRow) -> TaskSessionRow | None:
 
 
 def sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskSessionRow) -> bool:
-    """Ask the robot how a running execution is going; True if it has just finished (state changed)."""
+    """Record a running execution that has finished by its stored clock; True if the stored state changed.
+
+    The plan and start time are in the database (services.executions), so any process answers alike. An
+    execution whose plan is overdue (its process died while working it out) or that was stored without one
+    by an older version is worked out here, starting now.
+    """
     execution = ts.execution
     if execution is None or execution["status"] != "running":
         return False
-    key = robot_key(participant, ts.task_index)
-    progress = ctx.robot.progress(key)
-    if progress is None or list(progress.events) != execution["events"]:
-        # The robot forgot it (server restart): it starts the same execution again.
-        log.info("robot lost execution %s; restarting it", key)
-        ctx.robot.execute(key, execution["events"])
-        progress = ctx.robot.progress(key)
-    if progress is None or not progress.finished:
-        return False
-    trace = [sorted(labels) for labels in progress.trace]
+    changed = False
+    if execution.get("plan") is None:
+        if execution.get("recorded") and not executions.overdue(execution):
+            return False  # still being worked out in the background
+        rid = RecordingId(participant.uid, ts.task_index, execution["kind"], execution["index"])
+        execution = {**execution, "plan": executions.plan(ctx, robot_key(participant, ts.task_index), rid,
+                                                           execution["events"]),
+                     "started_at": utcnow().isoformat()}
+        ts.execution, changed = execution, True
+    progress = executions.progress(execution)
+    if not progress.finished:
+        return changed
+    trace = progress.trace
     ts.execution = {**execution, "status": "finished", "trace": trace, "finished_at": utcnow().isoformat()}
-    save_recording(ctx, participant, ts.task_index, execution["kind"], execution["index"])
     repo.append_event(
         s, participant=participant, kind="execution_finished", app_version=app_version(),
         task_index=ts.task_index, step_kind=execution["kind"], step_index=execution["index"],
@@ -197,22 +205,45 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
     with ctx.db.read() as s:
         participant, study = participant_and_study(s, token)
         ts = current_task(s, participant)
-        needs_write = ts is not None and ts.execution is not None and ts.execution["status"] == "running"
+        ex = ts.execution if ts is not None else None
+        # Only a running execution that has just finished (or needs working out here) is written.
+        needs_write = ex is not None and ex["status"] == "running" and (
+            executions.progress(ex).finished if ex.get("plan") is not None
+            else not ex.get("recorded") or executions.overdue(ex))
         expired = timed_out(study, participant)
         if not needs_write and not expired:
             if ts is not None and ts.execution is None:
                 ctx.planner.plan_ahead(ts.state_json)  # e.g. after a restart, before the participant asks
+            elif ex is not None and ex["status"] == "running" and ex.get("plan") is None:
+                _resume_working_out(ctx, participant, ts.task_index, ex)
             return state_view(s, participant, study)
-    with ctx.db.write() as s:
-        participant, study = participant_and_study(s, token)
-        if timed_out(study, participant):
-            mark_timed_out(s, participant)
-            commit(s)
+    try:
+        with ctx.db.write() as s:
+            participant, study = participant_and_study(s, token)
+            if timed_out(study, participant):
+                mark_timed_out(s, participant)
+                repo.commit(s)
+                return state_view(s, participant, study)
+            ts = current_task(s, participant)
+            if ts is not None and sync_execution(ctx, s, participant, ts):
+                repo.commit(s)
             return state_view(s, participant, study)
-        ts = current_task(s, participant)
-        if ts is not None and sync_execution(ctx, s, participant, ts):
-            commit(s)
-        return state_view(s, participant, study)
+    except repo.WriteConflict:
+        # Another request (the page's poll, another process) recorded the same finish first: show what it stored.
+        with ctx.db.read() as s:
+            participant, study = participant_and_study(s, token)
+            return state_view(s, participant, study)
+
+
+def _resume_working_out(ctx: Context, participant: ParticipantRow, task_index: int, ex: dict[str, Any]) -> None:
+    """An execution still being worked out, perhaps by a process that has died: work it out here too (the robot
+    skips it if it is already doing so). Never fails the request that only asked for the state."""
+    try:
+        executions.work_out_in_background(ctx, robot_key(participant, task_index),
+                                          RecordingId(participant.uid, task_index, ex["kind"], ex["index"]),
+                                          list(ex["events"]))
+    except Exception:  # noqa: BLE001 - the overdue path in sync_execution works it out in the end
+        log.warning("could not resume working out an execution", exc_info=True)
 
 
 def participant_and_study(s: Any, token: str) -> tuple[ParticipantRow, StudyRow]:
@@ -247,6 +278,7 @@ class Action:
     digest: str | None
     n_logged: int = 0
     plan_ahead: str | None = None  # a stored state whose robot turn can be planned once this commits
+    after_commit: list[Callable[[], None]] = field(default_factory=list)  # background work once committed
 
     def log(self, kind: str, payload: dict[str, Any], *, task_index: int | None = None,
             step_kind: str | None = None, step_index: int | None = None) -> None:
@@ -290,8 +322,13 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
             action = Action(ctx, s, participant, study, key, digest)
             run(action)
             repo.commit(s)
+            for then in action.after_commit:
+                then()
             if action.plan_ahead is not None:
                 ctx.planner.plan_ahead(action.plan_ahead)
+                ts_index = participant.task_index
+                executions.prepare_ahead(ctx, robot_key(participant, ts_index), participant.uid, ts_index,
+                                         action.plan_ahead)
             return state_view(s, participant, study)
         except Conflict as exc:
             conflict = exc

@@ -10,6 +10,8 @@ from ..core.domain import DINNER_OBJECTS
 from ..db import repository as repo
 from ..db.tables import TaskSessionRow, utcnow
 from ..errors import Conflict, InvalidInput
+from ..sim.recordings import RecordingId
+from . import executions
 from .context import Context
 from .planning import ROBOT_TURNS, session_of
 from .state import (
@@ -119,9 +121,13 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
         step = a.ctx.planner.step(ts.state_json)
         assert step.robot_execution is not None
         events = list(step.robot_execution.events)
-        a.ctx.robot.execute(robot_key(a.participant, ts.task_index), events)
+        rid = RecordingId(a.participant.uid, ts.task_index, step.kind, step.index)
+        robot = robot_key(a.participant, ts.task_index)
         ts.execution = {"kind": step.kind, "index": step.index, "events": events, "status": "running",
-                        "trace": None, "p_acceptable": step.p_acceptable, "started_at": utcnow().isoformat()}
+                        "trace": None, "p_acceptable": step.p_acceptable,
+                        **executions.begin(a.ctx, robot, rid, events)}
+        if ts.execution["plan"] is None:
+            a.after_commit.append(lambda: executions.work_out_in_background(a.ctx, robot, rid, events))
         a.log("execution_started", {"events": events, "p_acceptable": step.p_acceptable},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
         sync_execution(a.ctx, a.s, a.participant, ts)

@@ -8,6 +8,8 @@ from typing import Any
 
 from ..errors import Conflict, InvalidInput
 from ..robot import ViewingRobot
+from ..sim.recordings import RecordingId
+from . import executions
 from .context import Context
 from .planning import position_of
 from .state import Expect, current_task, participant_and_study, robot_key
@@ -46,12 +48,30 @@ def open_viewer(ctx: Context, token: str) -> int | None:
 
             def on_click(obj: str) -> None:
                 _place_clicked(ctx, token, obj, expect)
-        else:
-            ex = ts.execution
-            if (ex is not None and ex["status"] == "finished" and (ex["kind"], ex["index"]) == (kind, index)
-                    and robot.progress(key) is None):
-                robot.execute(key, ex["events"])  # show the finished execution again after a restart
+        # Robot turns are shown by playing the execution's recording in the browser (current_motion).
         return robot.open_view(key, on_click)
+
+
+def participant_uid_of(ctx: Context, token: str) -> str:
+    """The participant's random uid (it names their recordings) for their token (NotAuthenticated if none has it)."""
+    with ctx.db.read() as s:
+        participant, _study = participant_and_study(s, token)
+        return participant.uid
+
+
+def current_motion(ctx: Context, token: str) -> RecordingId | None:
+    """The recording the browser plays for the current step: its robot execution, once started and recorded."""
+    with ctx.db.read() as s:
+        participant, _study = participant_and_study(s, token)
+        ts = current_task(s, participant)
+        if ts is None or ts.execution is None:
+            return None
+        ex = ts.execution
+        kind, index, _ = position_of(ts.state_json)
+        recorded = ex.get("recorded") or (ex.get("plan") or {}).get("viewable")
+        if (ex["kind"], ex["index"]) != (kind, index) or not recorded:
+            return None
+        return RecordingId(participant.uid, ts.task_index, kind, index)
 
 
 def _place_clicked(ctx: Context, token: str, obj: str, expect: Expect) -> None:
@@ -68,11 +88,17 @@ def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
         participant, study_row = participant_and_study(s, token)
         ts = current_task(s, participant)
         key = None if ts is None else robot_key(participant, ts.task_index)
+        ex = None if ts is None else ts.execution
     robot = ctx.robot
     viewing = isinstance(robot, ViewingRobot)
     activity = robot.activity(key) if viewing and key is not None else None
-    return {"view": viewing, "moving": bool(activity and activity.moving),
-            "caption": activity.caption if activity else "", "watchers": activity.watchers if activity else 0}
+    out = {"view": viewing, "moving": bool(activity and activity.moving),
+           "caption": activity.caption if activity else "", "watchers": activity.watchers if activity else 0}
+    if ex is not None and ex["status"] == "running":
+        # An execution's progress is in the database, whichever process started it.
+        progress = executions.progress(ex)
+        out.update(moving=not progress.finished, caption=progress.caption)
+    return out
 
 
 def claim_tab(ctx: Context, token: str, tab_id: str, *, takeover: bool = False) -> dict[str, Any]:

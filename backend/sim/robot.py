@@ -17,9 +17,11 @@ import time
 import zlib
 from collections import deque
 from collections.abc import Callable, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
-from ..robot import RobotActivity, RobotProgress
+from ..robot import ExecutionPlan, RobotActivity, RobotProgress
+from .motion_file import Studio, viser_path, write_atomically
 from .physics import MujocoWorld
 from .playback import play
 from .recording import Recording
@@ -86,6 +88,10 @@ class MujocoRobot:
         self._lock = threading.Lock()
         self._reaper: threading.Thread | None = None
         self._closing = threading.Event()
+        self._studio: Studio | None = None
+        self._plans: dict[tuple[str, tuple[str, ...], str], ExecutionPlan] = {}  # the last few, see plan_execution
+        self._preparing: dict[tuple[str, tuple[str, ...], str], Future[ExecutionPlan]] = {}
+        self._prep_pool: ThreadPoolExecutor | None = None
 
     # -- Robot -------------------------------------------------------------------------------------
     def reset(self, key: str) -> Labels:
@@ -144,6 +150,86 @@ class MujocoRobot:
                 table.execution = events
             self._refresh(table)
             self._start_player(table)
+
+    def prepare(self, key: str, events: Sequence[str], name: str) -> Future[ExecutionPlan]:
+        """plan_execution in the background: the plan already made, the one under way, or a new one."""
+        memo = (key, tuple(events), name)
+        with self._lock:
+            known = self._plans.get(memo)
+            if known is not None and viser_path(self.data_dir, RecordingId.parse(name)).exists():
+                done: Future[ExecutionPlan] = Future()
+                done.set_result(known)
+                return done
+            if memo in self._preparing:
+                return self._preparing[memo]
+            if self._closing.is_set():
+                raise RuntimeError("the robot is shutting down: expected no new executions")
+            if self._prep_pool is None:
+                self._prep_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robot-prepare")
+            future = self._preparing[memo] = self._prep_pool.submit(self._work_out, key, tuple(events), name)
+            return future
+
+    def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
+        """Simulate the whole execution on a fresh copy of the table and save it (.npz, .json and a .viser file).
+
+        Nothing is shown live: the browser plays the .viser file. An execution already worked out (or being
+        worked out, see prepare) is not simulated again.
+        """
+        events = tuple(events)
+        memo = (key, events, name)
+        with self._lock:
+            known, preparing = self._plans.get(memo), self._preparing.get(memo)
+        if known is not None and viser_path(self.data_dir, RecordingId.parse(name)).exists():
+            return known
+        if preparing is not None:
+            try:
+                return preparing.result()
+            except Exception:  # noqa: BLE001 - worked out again below, where the error reaches the caller
+                log.warning("preparing execution %s failed; working it out again", name, exc_info=True)
+        return self._work_out(key, events, name)
+
+    def _work_out(self, key: str, events: tuple[str, ...], name: str) -> ExecutionPlan:
+        rid = RecordingId.parse(name)
+        memo = (key, events, name)
+        try:
+            return self._simulate(key, events, rid, memo)
+        finally:
+            with self._lock:
+                self._preparing.pop(memo, None)
+
+    def _simulate(self, key: str, events: tuple[str, ...], rid: RecordingId,
+                  memo: tuple[str, tuple[str, ...], str]) -> ExecutionPlan:
+        world = MujocoWorld(table_seed(key))
+        try:
+            check_sequence(events, world.objects)  # refuse the whole request before anything moves
+            start = float(world.data.time)
+            starts, ends = [], []
+            for obj in events:
+                starts.append(float(world.data.time))
+                world.place(obj)
+                ends.append(float(world.data.time))
+            recording = world.recording
+            saved = SavedRecording(rid, recording, tuple(world.placed), tuple(world.trace), tuple(ends))
+            save_recording(self.data_dir, saved)
+            captions = [(t0, f"The robot is placing the {_pretty(obj)} ({i + 1} of {len(events)})")
+                        for i, (t0, obj) in enumerate(zip(starts, events, strict=True))]
+            write_atomically(viser_path(self.data_dir, rid), self._studio_of(world).render(
+                recording, captions, speed=self.speed))
+            worked = ExecutionPlan(events, tuple(world.trace), tuple((end - start) / self.speed for end in ends),
+                                   viewable=True)
+        finally:
+            world.close()
+        with self._lock:
+            if len(self._plans) >= 1024:
+                self._plans.pop(next(iter(self._plans)))
+            self._plans[memo] = worked
+        return worked
+
+    def _studio_of(self, world: MujocoWorld) -> Studio:
+        with self._lock:
+            if self._studio is None:
+                self._studio = Studio(world.model)
+            return self._studio
 
     def progress(self, key: str) -> RobotProgress | None:
         """The execution's labels for the actions shown so far, and whether all have been shown."""
@@ -228,6 +314,10 @@ class MujocoRobot:
             self._tables.clear()
         for table in tables:
             self._shut(table)
+        if self._prep_pool is not None:
+            self._prep_pool.shutdown(wait=True, cancel_futures=True)
+        if self._studio is not None:
+            self._studio.close()
 
     # -- internals -----------------------------------------------------------------------------------
     def _get(self, key: str) -> _Table | None:

@@ -24,6 +24,7 @@ from starlette.websockets import WebSocketDisconnect
 from .. import services
 from ..errors import NotAuthenticated
 from .deps import ContextDep, TokenDep
+from .motion import playback_url
 from .schemas import error_responses
 
 log = logging.getLogger(__name__)
@@ -186,6 +187,9 @@ async def _pump(browser: WebSocket, upstream: Any) -> None:
 @router.post("/api/v1/me/view", response_model=ViewOut, responses=error_responses(401))
 def open_view(ctx: ContextDep, token: TokenDep) -> dict:
     """Prepare the participant's 3D view for the current step; the page embeds `url` when available."""
+    recorded = services.current_motion(ctx, token)  # a robot execution: the browser plays its recording
+    if recorded is not None:
+        return {"available": True, "url": playback_url(token, recorded)}
     port = services.open_viewer(ctx, token)
     return {"available": port is not None, "url": viewer_path(token) if port is not None else None}
 

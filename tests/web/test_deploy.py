@@ -15,7 +15,7 @@ DOCKERFILE = (REPO_ROOT / "Dockerfile").read_text()
 
 def test_services_run_postgres_then_migrations_then_the_app() -> None:
     services = COMPOSE["services"]
-    assert set(services) == {"db", "migrate", "app"}
+    assert set(services) == {"db", "migrate", "app", "proxy"}
     assert services["db"]["image"].startswith("postgres:")
     assert services["migrate"]["command"] == ["alembic", "upgrade", "head"]
     assert services["migrate"]["depends_on"]["db"]["condition"] == "service_healthy"
@@ -47,3 +47,15 @@ def test_dockerfile_installs_the_postgres_driver_and_the_migrations() -> None:
     assert "psycopg" in DOCKERFILE and "pip install -e ." in DOCKERFILE
     assert "COPY alembic " in DOCKERFILE and "COPY alembic.ini" in DOCKERFILE
     assert "tableteach" in DOCKERFILE.splitlines()[-1]
+
+
+def test_nginx_is_the_public_address_in_front_of_the_app_processes() -> None:
+    services = COMPOSE["services"]
+    proxy, app = services["proxy"], services["app"]
+    assert proxy["image"].startswith("nginx:") and "./deploy/nginx.conf:/etc/nginx/nginx.conf:ro" in proxy["volumes"]
+    assert proxy["depends_on"]["app"]["condition"] == "service_healthy"
+    assert "ports" not in app and app["deploy"]["replicas"].startswith("${TABLETEACH_APP_PROCESSES")
+    # All processes share one recording store (the .viser files any of them may serve).
+    assert any(v.endswith(":" + app["environment"]["TABLETEACH_DATA_DIR"]) for v in app["volumes"])
+    conf = (REPO_ROOT / "deploy" / "nginx.conf").read_text()
+    assert "server app:8000" in conf and "listen 8080;" in conf and "hash $route_key consistent;" in conf

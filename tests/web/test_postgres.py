@@ -2,69 +2,33 @@
 
 from __future__ import annotations
 
-import glob
 import os
-import shutil
 import subprocess
 import sys
-import tempfile
 from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
 
 from tableteach.client import ParticipantClient, run_teacher
+from tableteach.db import throwaway_postgres
 
 from ..conftest import REPO
-from .conftest import ServerProcess, free_port, open_study, study_spec
+from .conftest import ServerProcess, open_study, study_spec
 from .test_e2e import _exports
 
 pytestmark = pytest.mark.slow
 
 
-def _postgres_bin() -> Path | None:
-    found = sorted(glob.glob("/usr/lib/postgresql/*/bin/initdb"))
-    return Path(found[-1]).parent if found else None
-
-
-def _as_server_user(args: list[str]) -> list[str]:
-    """PostgreSQL refuses to run as root: use the package's postgres user then."""
-    if os.geteuid() == 0:
-        return ["runuser", "-u", "postgres", "--", *args]
-    return args
-
-
 @pytest.fixture(scope="module")
 def postgres_url() -> Iterator[str]:
     """A fresh PostgreSQL cluster on 127.0.0.1 with trust auth; its SQLAlchemy URL."""
-    bin_dir = _postgres_bin()
-    if bin_dir is None or importlib_missing("psycopg"):
+    if not throwaway_postgres.available():
         if os.environ.get("CI"):
             pytest.fail("PostgreSQL tests need Debian's postgresql package and psycopg (scripts/test.sh installs both)")
         pytest.skip("Debian's postgresql package or psycopg is not installed")
-    # Not under pytest's tmp tree: the postgres user cannot traverse root's private folders.
-    folder = Path(tempfile.mkdtemp(prefix="tableteach-pg-"))
-    if os.geteuid() == 0:
-        shutil.chown(folder, user="postgres")
-    data, port = folder / "data", free_port()
-    subprocess.run(_as_server_user([str(bin_dir / "initdb"), "-D", str(data), "-A", "trust", "-U", "tableteach"]),
-                   check=True, capture_output=True)
-    options = f"-p {port} -k {folder} -c listen_addresses=127.0.0.1"
-    subprocess.run(_as_server_user([str(bin_dir / "pg_ctl"), "-D", str(data), "-o", options, "-l",
-                                    str(folder / "server.log"), "-w", "start"]), check=True, capture_output=True)
-    try:
-        yield f"postgresql+psycopg://tableteach@127.0.0.1:{port}/postgres"
-    finally:
-        subprocess.run(_as_server_user([str(bin_dir / "pg_ctl"), "-D", str(data), "-m", "fast", "-w", "stop"]),
-                       capture_output=True)
-        shutil.rmtree(folder, ignore_errors=True)
-
-
-def importlib_missing(module: str) -> bool:
-    """Whether a module cannot be imported."""
-    import importlib.util
-
-    return importlib.util.find_spec(module) is None
+    with throwaway_postgres.throwaway_postgres() as url:
+        yield url
 
 
 def test_migrations_apply_and_match_the_models_on_postgresql(postgres_url: str) -> None:

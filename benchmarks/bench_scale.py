@@ -1,0 +1,459 @@
+"""Scale benchmark: N participants at once, paced as people, against K `tableteach serve` processes on PostgreSQL.
+
+Starts a throwaway PostgreSQL cluster (Debian's server binaries, as the tests do) unless --database-url is
+given, applies the migrations, starts K app processes sharing one recording store, creates a study, and
+runs N simulated participants as real HTTP clients (asyncio). Participant i talks to process i % K only,
+as the sticky reverse proxy (deploy/nginx.conf) would route them. Each participant:
+
+- joins (arrivals spread over --ramp seconds), consents, reads the instructions;
+- demonstrates by placing objects one at a time, pausing --think seconds (x0.5-1.5) before each action;
+- lets the robot carry out each query and test and watches it: the page asks for the view (POST /me/view),
+  gets the playback URL and downloads the execution's .viser file, which the browser would play. The
+  reader times the wait for the file (the robot works the execution out first; its clock starts when it
+  is ready), the transfer, and reads the frame times inside the file: its frame rate and largest gap;
+- polls GET /me and GET /me/robot every --poll seconds while at a task, and renews its tab lease every
+  5 s, as the participant page does; then answers the questionnaire.
+
+Targets (exit status 0 only if all hold): every REST action's p99 under 200 ms, 0 errors, every session
+completed, every watched execution at 25 fps or more with no stall over 0.5 s (transfer or frame gap).
+
+It prints progress every few seconds, then p50/p99 per action, CPU seconds per app process and per
+participant, the database's CPU and transactions, and last:
+
+    participants N processes K rest_p99_ms X min_fps Y errors Z
+
+    .venv/bin/python benchmarks/bench_scale.py --participants 20 --processes 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import os
+import secrets
+import subprocess
+import sys
+import tempfile
+import time
+import uuid
+from collections.abc import Iterator
+from contextlib import ExitStack, contextmanager
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import httpx
+import numpy as np
+
+from tableteach.client import truth_mask
+from tableteach.core.domain import get_domain
+from tableteach.core.teachers import SimulatedTeacher
+
+TARGET_P99_MS = 200.0
+TARGET_FPS = 25.0
+TARGET_STALL_S = 0.5
+TAB_RENEW_S = 5.0  # frontend/participant.js HEARTBEAT_MS
+POSE_MESSAGES = ("SetPositionMessage", "SetOrientationMessage")
+MUJOCO_SECONDS_PER_OBJECT = 5.6  # one pick-and-place of the MuJoCo arm at speed 1
+
+
+# ----------------------------------------------------------------------------------------------- servers
+
+def _free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def _cpu_seconds(pid: int, children: bool = False) -> float:
+    """User + system CPU time of a process (Linux /proc); with children, also of its reaped children."""
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            fields = f.read().rsplit(")", 1)[1].split()
+    except OSError:
+        return 0.0
+    ticks = int(fields[11]) + int(fields[12]) + ((int(fields[13]) + int(fields[14])) if children else 0)
+    return ticks / os.sysconf("SC_CLK_TCK")
+
+
+def _children(pid: int) -> list[int]:
+    out = []
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                with open(f"/proc/{entry}/stat") as f:
+                    if int(f.read().rsplit(")", 1)[1].split()[1]) == pid:
+                        out.append(int(entry))
+            except (OSError, ValueError, IndexError):
+                continue
+    return out
+
+
+class Database:
+    """The benchmark's PostgreSQL: its URL, and (when it runs on this machine) its CPU time and transactions."""
+
+    def __init__(self, url: str) -> None:
+        import psycopg
+
+        from tableteach.db.pg_notify import libpq_url
+
+        self.url = url
+        self._conninfo = libpq_url(url)
+        with psycopg.connect(self._conninfo) as conn:
+            backend = conn.execute("SELECT pg_backend_pid()").fetchone()[0]
+        self.postmaster: int | None = None
+        try:
+            with open(f"/proc/{backend}/stat") as f:
+                self.postmaster = int(f.read().rsplit(")", 1)[1].split()[1])
+        except OSError:
+            pass  # a database on another host: no CPU figures
+
+    def cpu_seconds(self) -> float | None:
+        """The cluster's CPU time so far (postmaster, its exited children and the live ones), if local."""
+        if self.postmaster is None:
+            return None
+        return _cpu_seconds(self.postmaster, children=True) + sum(_cpu_seconds(p) for p in _children(self.postmaster))
+
+    def transactions(self) -> int:
+        """Committed plus rolled back transactions in all databases so far."""
+        import psycopg
+
+        with psycopg.connect(self._conninfo) as conn:
+            return int(conn.execute("SELECT sum(xact_commit + xact_rollback) FROM pg_stat_database").fetchone()[0])
+
+
+@contextmanager
+def database(url: str | None) -> Iterator[str]:
+    """The given URL, or a throwaway cluster's."""
+    if url is not None:
+        yield url
+        return
+    from tableteach.db.throwaway_postgres import throwaway_postgres
+
+    with throwaway_postgres(max_connections=300) as fresh:
+        yield fresh
+
+
+@contextmanager
+def app_processes(k: int, url: str, folder: Path, logs: Path, token: str, robot: str,
+                  speed: float) -> Iterator[list[Any]]:
+    """K `tableteach serve` processes on one database and one recording store; stopped on exit."""
+    env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": token, "TABLETEACH_ROBOT": robot,
+           "TABLETEACH_ROBOT_SPEED": str(speed), "TABLETEACH_DATA_DIR": str(folder / "data"),
+           # The trace robot takes as long per object as the MuJoCo arm, so people wait as long for it.
+           "TABLETEACH_ROBOT_SECONDS_PER_OBJECT": str(MUJOCO_SECONDS_PER_OBJECT / speed)}
+    env.pop("TABLETEACH_DEV_MODE", None)
+    procs = []
+    try:
+        for i in range(k):
+            port = _free_port()
+            log = open(logs / f"app-{i}.log", "wb")
+            proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "serve", "--port", str(port),
+                                     "--database-url", url], env=env, stdout=log, stderr=subprocess.STDOUT)
+            proc.url = f"http://127.0.0.1:{port}"  # type: ignore[attr-defined]
+            procs.append(proc)
+        for proc in procs:
+            deadline = time.monotonic() + 60
+            while True:
+                if proc.poll() is not None:
+                    raise RuntimeError(f"an app process exited with {proc.returncode}; see {logs}/app-*.log")
+                try:
+                    if httpx.get(f"{proc.url}/healthz", timeout=1).status_code == 200:  # type: ignore[attr-defined]
+                        break
+                except httpx.TransportError:
+                    pass
+                if time.monotonic() > deadline:
+                    raise RuntimeError("an app process did not answer /healthz within 60 s")
+                time.sleep(0.2)
+        yield procs
+    finally:
+        for proc in procs:
+            proc.terminate()
+        for proc in procs:
+            try:
+                proc.wait(timeout=15)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+
+
+# ------------------------------------------------------------------------------------------ participants
+
+@dataclass
+class Results:
+    """What all participants saw."""
+
+    latencies: dict[str, list[float]] = field(default_factory=dict)
+    errors: list[str] = field(default_factory=list)
+    completed: int = 0
+    watched: list[dict[str, float]] = field(default_factory=list)  # one per execution: fps, gap, download
+
+    def rest(self, action: str, seconds: float) -> None:
+        self.latencies.setdefault(action, []).append(seconds)
+
+    def rest_latencies(self) -> np.ndarray:
+        """Every REST action's latency (the recording download, which waits for the robot, is not one)."""
+        return np.array([x for name, xs in self.latencies.items() if name != "recording" for x in xs])
+
+
+def viser_frames(data: bytes) -> list[float]:
+    """The distinct times (s) at which a .viser recording moves a body."""
+    import msgspec
+    import zstandard
+
+    inner_size = int.from_bytes(data[:8], "little")
+    inner = zstandard.ZstdDecompressor().decompress(data[8:], max_output_size=inner_size)
+    n = int.from_bytes(inner[:8], "little")
+    payload = msgspec.msgpack.decode(inner[8:8 + n])
+    return sorted({float(t) for t, message in payload["messages"] if message.get("type") in POSE_MESSAGES})
+
+
+class Participant:
+    """One simulated person: the actions of the scripted teacher at a person's pace, plus the page's polling."""
+
+    def __init__(self, i: int, base: str, study_id: str, results: Results, think: float, poll: float) -> None:
+        self.i, self.study_id, self.results = i, study_id, results
+        self.think, self.poll = think, poll
+        self.http = httpx.AsyncClient(base_url=base, timeout=60)
+        self.rng = np.random.default_rng(i)
+        self.teacher = SimulatedTeacher(get_domain("dinner"), truth_mask("task1"), 0.1)
+        self.token: str | None = None
+        self.state: dict[str, Any] = {}
+        self.tab = secrets.token_urlsafe(12)
+
+    async def request(self, method: str, path: str, body: Any = None, action: str | None = None) -> dict[str, Any]:
+        headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
+        if method == "POST":
+            headers["Idempotency-Key"] = str(uuid.uuid4())
+        name = action or path.rsplit("/", 1)[-1]
+        started = time.perf_counter()
+        try:
+            response = await self.http.request(method, path, json=body, headers=headers)
+        except httpx.HTTPError as exc:
+            self.results.errors.append(f"{method} {name}: {exc!r}")
+            raise
+        self.results.rest(name, time.perf_counter() - started)
+        if response.status_code >= 400:
+            self.results.errors.append(f"{method} {name}: HTTP {response.status_code} {response.text[:200]}")
+            raise RuntimeError(f"{method} {path}: HTTP {response.status_code}")
+        return response.json() if response.content else {}
+
+    async def pause(self) -> None:
+        await asyncio.sleep(self.think * float(self.rng.uniform(0.5, 1.5)))
+
+    async def page(self, stop: asyncio.Event) -> None:
+        """The open participant page: state and robot activity every `poll` s, the tab lease every 5 s."""
+        last_tab = 0.0
+        while not stop.is_set():
+            try:
+                if self.state.get("stage") == "task":
+                    await self.request("GET", "/api/v1/me", action="GET me")
+                    await self.request("GET", "/api/v1/me/robot", action="GET robot")
+                if time.monotonic() - last_tab > TAB_RENEW_S:
+                    await self.request("POST", "/api/v1/me/tab", {"tab_id": self.tab}, action="tab")
+                    last_tab = time.monotonic()
+            except (httpx.HTTPError, RuntimeError):
+                pass  # counted as an error already
+            try:
+                await asyncio.wait_for(stop.wait(), self.poll)
+            except asyncio.TimeoutError:
+                pass
+
+    async def run(self) -> None:
+        joined = await self.request("POST", f"/api/v1/studies/{self.study_id}/join",
+                                    {"prolific_pid": f"bench-{self.i}-{secrets.token_hex(4)}"}, action="join")
+        self.token, self.state = joined["state"]["token"], joined["state"]
+        stop = asyncio.Event()
+        page = asyncio.create_task(self.page(stop))
+        try:
+            await self.pause()
+            self.state = await self.request("POST", "/api/v1/me/consent",
+                                            {"agree": True, "consent_version": self.state["consent"]["version"]})
+            await self.pause()
+            self.state = await self.request("POST", "/api/v1/me/instructions")
+            viewed_task = None
+            while self.state["stage"] == "task":
+                if viewed_task != self.state["task"]["index"]:
+                    await self.request("POST", "/api/v1/me/view", action="view")  # the page opens the 3D view
+                    viewed_task = self.state["task"]["index"]
+                await self.step()
+            if self.state["stage"] == "questionnaire":
+                await self.pause()
+                answers = {item["id"]: (4 if item["kind"] == "likert5" else 8 if item["kind"] == "rating10" else "ok")
+                           for item in self.state["questionnaire"]}
+                self.state = await self.request("POST", "/api/v1/me/questionnaire", {"answers": answers})
+            self.results.completed += self.state["stage"] == "done"
+        finally:
+            stop.set()
+            await page
+            await self.http.aclose()
+
+    async def step(self) -> None:
+        state, step = self.state, self.state["step"]
+        guard = {"task_index": state["task"]["index"], "step_kind": step["kind"], "step_index": step["index"]}
+        if step["kind"] in ("practice", "demonstration"):
+            for obj in self.teacher.demonstrate(self.rng).events:
+                if obj in self.state["demonstration"]["placed"]:
+                    continue
+                await self.pause()
+                self.state = await self.request("POST", "/api/v1/me/placements", {"object": obj, **guard})
+            await self.pause()
+            self.state = await self.request("POST", "/api/v1/me/demonstration/finish", guard, action="finish")
+            return
+        await self.pause()
+        started = time.perf_counter()
+        self.state = await self.request("POST", "/api/v1/me/execution", guard)
+        await self.watch(started)
+        while self.state["execution"]["status"] != "finished":
+            await asyncio.sleep(self.poll)
+            self.state = await self.request("GET", "/api/v1/me", action="GET me")
+        await self.pause()
+        trace = [frozenset(x) for x in self.state["execution"]["trace"]]
+        verdict = self.teacher.assess(trace, self.rng)
+        self.state = await self.request("POST", "/api/v1/me/assessment", {"acceptable": verdict, **guard},
+                                        action="assessment")
+
+    async def watch(self, started: float) -> None:
+        """What the page does to show the execution: ask for the view, then download the recording it plays."""
+        view = await self.request("POST", "/api/v1/me/view", action="view")
+        url = view.get("url") or ""
+        if "playbackPath=" not in url:
+            return  # a robot without recordings (trace): nothing to watch
+        from urllib.parse import parse_qs, urlparse
+
+        path = parse_qs(urlparse(url).query)["playbackPath"][0]
+        # The answer waits until the robot has worked the execution out; then the file is transferred.
+        async with self.http.stream("GET", path) as response:
+            ready = time.perf_counter()
+            body = await response.aread()
+        done = time.perf_counter()
+        self.results.rest("recording", ready - started)
+        if response.status_code != 200:
+            self.results.errors.append(f"GET recording: HTTP {response.status_code}")
+            return
+        frames = viser_frames(body)
+        gaps = np.diff(frames) if len(frames) > 1 else np.array([0.0])
+        duration = frames[-1] - frames[0] if len(frames) > 1 else 0.0
+        self.results.watched.append({"fps": (len(frames) - 1) / duration if duration > 0 else 0.0,
+                                     "max_gap": float(gaps.max()), "wait": ready - started,
+                                     "transfer": done - ready})
+
+
+async def run_participants(n: int, urls: list[str], study_id: str, think: float, poll: float, ramp: float,
+                           results: Results) -> None:
+    """All participants, arriving evenly over `ramp` seconds; progress printed every 5 s."""
+    participants = [Participant(i, urls[i % len(urls)], study_id, results, think, poll) for i in range(n)]
+
+    async def arrive(p: Participant) -> None:
+        await asyncio.sleep(ramp * p.i / max(1, n))
+        try:
+            await p.run()
+        except Exception as exc:  # noqa: BLE001 - one participant's failure is counted, the others go on
+            results.errors.append(f"participant {p.i} stopped: {exc!r}")
+
+    tasks = [asyncio.create_task(arrive(p)) for p in participants]
+    started = time.monotonic()
+    while not all(t.done() for t in tasks):
+        await asyncio.wait(tasks, timeout=5.0)
+        lat = results.rest_latencies()
+        p99 = float(np.percentile(lat, 99)) * 1000 if len(lat) else 0.0
+        print(f"  {time.monotonic() - started:6.0f} s: {results.completed}/{n} done, {len(lat)} requests, "
+              f"p99 so far {p99:.0f} ms, {len(results.watched)} executions watched, {len(results.errors)} errors",
+              flush=True)
+
+
+# ----------------------------------------------------------------------------------------------- main
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--participants", type=int, default=20)
+    parser.add_argument("--processes", type=int, default=1)
+    parser.add_argument("--database-url", default=None,
+                        help="a PostgreSQL SQLAlchemy URL (default: a throwaway cluster, as the tests use)")
+    parser.add_argument("--robot", choices=("mujoco", "trace"), default="mujoco",
+                        help="trace: no physics or recordings (REST load only), 5.6 s per object like the arm")
+    parser.add_argument("--robot-speed", type=float, default=1.0, help="1 = real time (an action takes ~5.6 s)")
+    parser.add_argument("--think", type=float, default=3.0, help="mean seconds a person takes before each action")
+    parser.add_argument("--poll", type=float, default=1.0, help="seconds between the page's refreshes")
+    parser.add_argument("--ramp", type=float, default=None, help="seconds over which participants arrive "
+                        "(default: 0.5 s per participant, at most 60)")
+    args = parser.parse_args(argv)
+    if args.participants < 1 or args.processes < 1:
+        parser.error("--participants and --processes must be at least 1")
+    ramp = args.ramp if args.ramp is not None else min(60.0, 0.5 * args.participants)
+    token = secrets.token_urlsafe(24)
+
+    with ExitStack() as stack:
+        folder = Path(stack.enter_context(tempfile.TemporaryDirectory(prefix="bench-scale-")))
+        logs = Path(tempfile.mkdtemp(prefix="bench-scale-logs-"))  # kept: the app processes' logs
+        print(f"database: {'given URL' if args.database_url else 'starting a throwaway PostgreSQL'}", flush=True)
+        url = stack.enter_context(database(args.database_url))
+        from tableteach.db.migrate import upgrade_head
+
+        upgrade_head(url)  # once, before the processes start (each would otherwise race to do it)
+        db = Database(url)
+        print(f"starting {args.processes} app process(es) ({args.robot} robot, speed {args.robot_speed})", flush=True)
+        procs = stack.enter_context(app_processes(args.processes, url, folder, logs, token, args.robot,
+                                                  args.robot_speed))
+        urls = [p.url for p in procs]
+        spec = {"name": "scale benchmark", "tasks": [{"key": "task1"}], "conditions": ["active"], "n_practice": 0,
+                "n_demonstrations": 2, "n_queries": 2, "n_tests": 1,
+                "questionnaire": [{"id": "overall", "text": "Overall rating", "kind": "rating10"}]}
+        headers = {"Authorization": f"Bearer {token}"}
+        study = httpx.post(f"{urls[0]}/api/v1/studies", json=spec, headers=headers, timeout=30).json()
+        httpx.post(f"{urls[0]}/api/v1/studies/{study['id']}/open", headers=headers, timeout=30).raise_for_status()
+        print(f"study: 2 demonstrations, 2 queries, 1 test; {args.participants} participants arriving over "
+              f"{ramp:.0f} s, think {args.think} s, page refresh {args.poll} s", flush=True)
+
+        cpu_before = [_cpu_seconds(p.pid) for p in procs]
+        db_cpu_before, xacts_before = db.cpu_seconds(), db.transactions()
+        results = Results()
+        started = time.monotonic()
+        asyncio.run(run_participants(args.participants, urls, study["id"], args.think, args.poll, ramp, results))
+        wall = time.monotonic() - started
+        cpu = [_cpu_seconds(p.pid) - before for p, before in zip(procs, cpu_before, strict=True)]
+        db_cpu_after, xacts = db.cpu_seconds(), db.transactions() - xacts_before
+
+    lat = results.rest_latencies()
+    p99 = float(np.percentile(lat, 99)) * 1000 if len(lat) else float("inf")
+    print(f"\n{results.completed}/{args.participants} sessions completed in {wall:.0f} s; {len(lat)} REST requests "
+          f"({len(lat) / wall:.1f}/s)")
+    print(f"{'action':<14}{'n':>7}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}")
+    for action, xs in sorted(results.latencies.items()):
+        a = np.array(xs) * 1000
+        print(f"{action:<14}{len(a):>7}{np.percentile(a, 50):>9.1f}{np.percentile(a, 99):>9.1f}{a.max():>9.1f}")
+    for i, c in enumerate(cpu):
+        print(f"app process {i}: {c:.1f} CPU s ({100 * c / wall:.0f}% of a core)")
+    print(f"app CPU per participant: {sum(cpu) / args.participants:.2f} s per session "
+          f"({1000 * sum(cpu) / max(1, len(lat)):.1f} ms per request)")
+    if db_cpu_before is not None and db_cpu_after is not None:
+        db_cpu = db_cpu_after - db_cpu_before
+        print(f"database: {db_cpu:.1f} CPU s ({100 * db_cpu / wall:.0f}% of a core), {xacts} transactions "
+              f"({xacts / wall:.0f}/s)")
+    else:
+        print(f"database: {xacts} transactions ({xacts / wall:.0f}/s); CPU not measured (not on this machine)")
+    min_fps = min((w["fps"] for w in results.watched), default=0.0)
+    if results.watched:
+        waits = np.array([w["wait"] for w in results.watched])
+        transfers = np.array([w["transfer"] for w in results.watched])
+        print(f"watched {len(results.watched)} executions: recording fps min {min_fps:.1f}, largest frame gap "
+              f"{1000 * max(w['max_gap'] for w in results.watched):.0f} ms, transfer p50 "
+              f"{1000 * np.percentile(transfers, 50):.0f} ms max {1000 * transfers.max():.0f} ms; from the start "
+              f"click to the recording ready (the motion's clock starts then): p50 "
+              f"{1000 * np.percentile(waits, 50):.0f} ms, max {1000 * waits.max():.0f} ms")
+    for error in results.errors[:10]:
+        print("error:", error)
+    print(f"app process logs: {logs}")
+    stall = max((max(w["max_gap"], w["transfer"]) for w in results.watched), default=0.0)
+    fps_ok = args.robot == "trace" or (bool(results.watched) and min_fps >= TARGET_FPS and stall <= TARGET_STALL_S)
+    ok = (p99 < TARGET_P99_MS and not results.errors and results.completed == args.participants and fps_ok)
+    print(f"targets: rest p99 < {TARGET_P99_MS:.0f} ms, fps >= {TARGET_FPS:.0f}, stall <= {TARGET_STALL_S} s, "
+          f"0 errors, all sessions done: {'met' if ok else 'MISSED'}")
+    print(f"participants {args.participants} processes {args.processes} rest_p99_ms {p99:.0f} min_fps {min_fps:.1f} "
+          f"errors {len(results.errors)}")
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,150 @@
+"""Several app processes on one PostgreSQL: a participant's requests may go to any of them, and killing the
+process that started a robot execution loses nothing (the execution's clock is in the database)."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+from tableteach.client import ParticipantClient, run_teacher
+from tableteach.core.domain import get_domain
+
+from .conftest import ServerProcess, open_study, study_spec
+from .test_e2e import _check_exports_match, _exports
+from .test_postgres import postgres_url  # noqa: F401 - the module's throwaway PostgreSQL cluster
+
+pytestmark = pytest.mark.slow
+SECONDS_PER_OBJECT = 0.6
+
+
+class RoundRobin(httpx.BaseTransport):
+    """Sends each request to the next of several app processes (as a load balancer without stickiness would)."""
+
+    def __init__(self, ports: list[int]) -> None:
+        self.ports = ports
+        self.sent: dict[int, int] = {}
+        self._next = 0
+        self._inner = httpx.HTTPTransport()
+
+    def handle_request(self, request: httpx.Request) -> httpx.Response:
+        port = self.ports[self._next % len(self.ports)]
+        self._next += 1
+        self.sent[port] = self.sent.get(port, 0) + 1
+        request.url = request.url.copy_with(port=port)
+        return self._inner.handle_request(request)
+
+
+def _round_robin_client(servers: list[ServerProcess], token: str | None = None) -> tuple[ParticipantClient, RoundRobin]:
+    api = ParticipantClient(servers[0].url, token=token)
+    transport = RoundRobin([s.port for s in servers])
+    api.http.close()
+    api.http = httpx.Client(base_url=servers[0].url, transport=transport, timeout=30)
+    return api, transport
+
+
+def _server(postgres: str, tmp_path: Path, name: str) -> ServerProcess:
+    return ServerProcess(tmp_path / f"{name}.db", database_url=postgres, TABLETEACH_DATA_DIR=str(tmp_path / "data"),
+                         TABLETEACH_ROBOT_SECONDS_PER_OBJECT=str(SECONDS_PER_OBJECT)).start()
+
+
+def test_a_session_moves_between_processes_and_survives_killing_the_one_running_the_robot(
+    postgres_url: str, tmp_path: Path  # noqa: F811 - the fixture imported above
+) -> None:
+    a, b = _server(postgres_url, tmp_path, "a"), _server(postgres_url, tmp_path, "b")
+    c: ServerProcess | None = None
+    try:
+        study_id = open_study(a.url, study_spec(["active"]))
+        # consent, instructions, practice, two demonstrations: every request alternates between a and b.
+        api, transport = _round_robin_client([a, b])
+        partial = run_teacher(a.url, study_id, ["task1"], seed=7, client=api, stop_after=5)
+        assert transport.sent[a.port] > 3 and transport.sent[b.port] > 3
+
+        on_a = ParticipantClient(a.url, token=partial.token)
+        on_b = ParticipantClient(b.url, token=partial.token)
+        started = on_a.execute()
+        started_at = time.monotonic()
+        assert started["execution"]["status"] == "running"
+        events = started["execution"]["events"]
+        assert len(events) >= 4
+        time.sleep(max(0.0, started_at + 2.3 * SECONDS_PER_OBJECT - time.monotonic()))
+        a.kill()  # the process that started the execution dies mid-motion, b has not heard of it yet
+
+        seen_on_b = on_b.state()
+        assert seen_on_b["execution"]["status"] == "running" and seen_on_b["execution"]["events"] == events
+        moving = on_b.http.get("/api/v1/me/robot", headers={"Authorization": f"Bearer {partial.token}"}).json()
+        # b reports the motion where it has got to (third object or later), not from the start again.
+        placing = [f"The robot is placing the {obj.replace('_', ' ')} ({i + 1} of {len(events)})"
+                   for i, obj in enumerate(events)]
+        assert moving["moving"] and moving["caption"] in placing[2:]
+
+        state = on_b.state()
+        while state["execution"]["status"] != "finished":
+            assert time.monotonic() - started_at < 20, "the execution never finished after its process died"
+            time.sleep(0.05)
+            state = on_b.state()
+        took = time.monotonic() - started_at
+        duration = SECONDS_PER_OBJECT * len(events)
+        # The execution went on by its stored clock: it was not started again from the beginning on b.
+        assert duration - 0.1 <= took < duration + 1.5
+        assert state["execution"]["events"] == events
+        assert state["execution"]["trace"] == [sorted(x) for x in get_domain("dinner").trace_of(tuple(events))]
+
+        # A new process joins; the rest of the session alternates between it and b.
+        c = _server(postgres_url, tmp_path, "c")
+        api, transport = _round_robin_client([b, c], token=partial.token)
+        finished = run_teacher(b.url, study_id, ["task1"], seed=7, client=api)
+        assert finished.completion_code and transport.sent[c.port] > 3
+
+        exports = _exports(c.url, study_id)
+        mine = [e for e in exports["events"] if e["participant_id"] == str(partial.participant_id)]
+        assert [int(e["seq"]) for e in mine] == list(range(1, len(mine) + 1))
+        starts = [(e["task_index"], e["step_kind"], e["step_index"]) for e in mine if e["kind"] == "execution_started"]
+        ends = [(e["task_index"], e["step_kind"], e["step_index"]) for e in mine if e["kind"] == "execution_finished"]
+        assert starts == ends and len(set(starts)) == len(starts)  # each execution started and finished once
+        finished.actions = partial.actions + finished.actions
+        _check_exports_match(finished, exports, "active")
+    finally:
+        for server in (a, b, c):
+            if server is not None:
+                server.stop()
+
+
+def test_with_the_mujoco_robot_another_process_finishes_the_execution_and_serves_its_recording(
+    postgres_url: str, tmp_path: Path  # noqa: F811 - the fixture imported above
+) -> None:
+    robot = {"TABLETEACH_ROBOT": "mujoco", "TABLETEACH_ROBOT_SPEED": "4"}
+    shared = {"database_url": postgres_url, "TABLETEACH_DATA_DIR": str(tmp_path / "data"), **robot}
+    a = ServerProcess(tmp_path / "a.db", **shared).start()
+    b = ServerProcess(tmp_path / "b.db", **shared).start()
+    try:
+        study_id = open_study(a.url, study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=1,
+                                                n_tests=0))
+        partial = run_teacher(a.url, study_id, ["task1"], seed=3, stop_after=3)  # consent, instructions, demo
+        headers = {"Authorization": f"Bearer {partial.token}"}
+        started = httpx.post(f"{a.url}/api/v1/me/execution", headers=headers, timeout=30).json()
+        assert started["execution"]["status"] == "running"
+        deadline = time.monotonic() + 30
+        while not httpx.get(f"{b.url}/api/v1/me/robot", headers=headers).json()["caption"].startswith(
+                "The robot is placing"):
+            assert time.monotonic() < deadline, "the execution was never worked out"
+            time.sleep(0.1)
+        a.kill()  # mid-motion: a worked the execution out and started it
+
+        view = httpx.post(f"{b.url}/api/v1/me/view", headers=headers).json()
+        assert "playbackPath=" in view["url"]
+        recording = httpx.get(f"{b.url}/p/{partial.token}/motion/task-0/query-0.viser", timeout=30)
+        assert recording.status_code == 200 and len(recording.content) > 10_000
+        state = httpx.get(f"{b.url}/api/v1/me", headers=headers).json()
+        while state["execution"]["status"] != "finished":
+            assert time.monotonic() < deadline + 30, "the execution never finished after its process died"
+            time.sleep(0.1)
+            state = httpx.get(f"{b.url}/api/v1/me", headers=headers).json()
+        assert state["execution"]["events"] == started["execution"]["events"]
+        api = ParticipantClient(b.url, token=partial.token)
+        assert run_teacher(b.url, study_id, ["task1"], seed=3, client=api).completion_code
+    finally:
+        a.stop()
+        b.stop()
