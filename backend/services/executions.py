@@ -70,7 +70,7 @@ _storing: set[tuple[int, str]] = set()  # (robot, recording) whose plan this pro
 _storing_lock = threading.Lock()
 
 
-def work_out_in_background(ctx: Context, key: str, rid: RecordingId, events: list[str]) -> None:
+def work_out_in_background(ctx: Context, key: str, participant_id: int, rid: RecordingId, events: list[str]) -> None:
     """Have the robot work the stored execution out and store its plan when ready (after the commit; again by
     any process asked about an execution still without a plan, e.g. after the one working it out died)."""
     waiting = (id(ctx.robot), rid.name)
@@ -87,7 +87,7 @@ def work_out_in_background(ctx: Context, key: str, rid: RecordingId, events: lis
 
     def store(done: Future[ExecutionPlan]) -> None:
         try:
-            _store_plan(ctx, rid, events, done)
+            _store_plan(ctx, participant_id, rid, events, done)
         finally:
             with _storing_lock:
                 _storing.discard(waiting)
@@ -98,7 +98,8 @@ def work_out_in_background(ctx: Context, key: str, rid: RecordingId, events: lis
                                                            daemon=True).start())
 
 
-def _store_plan(ctx: Context, rid: RecordingId, events: list[str], done: Future[ExecutionPlan]) -> None:
+def _store_plan(ctx: Context, participant_id: int, rid: RecordingId, events: list[str],
+                done: Future[ExecutionPlan]) -> None:
     """Store a plan worked out in the background, unless the execution has moved on or has one already."""
     if done.cancelled() or done.exception() is not None:
         log.warning("working out %s failed; a later request works it out again", rid.name,
@@ -108,7 +109,7 @@ def _store_plan(ctx: Context, rid: RecordingId, events: list[str], done: Future[
     for attempt in range(STORE_ATTEMPTS):
         try:
             with ctx.db.write() as s:
-                ts = repo.get_task_session(s, participant_id=rid.participant_id, task_index=rid.task_index)
+                ts = repo.get_task_session(s, participant_id=participant_id, task_index=rid.task_index)
                 ex = None if ts is None else ts.execution
                 if (ex is None or ex["status"] != "running" or ex.get("plan") is not None
                         or (ex["kind"], ex["index"], ex["events"]) != (rid.step_kind, rid.step_index, events)):

@@ -239,7 +239,7 @@ def _resume_working_out(ctx: Context, participant: ParticipantRow, task_index: i
     """An execution still being worked out, perhaps by a process that has died: work it out here too (the robot
     skips it if it is already doing so). Never fails the request that only asked for the state."""
     try:
-        executions.work_out_in_background(ctx, robot_key(participant, task_index),
+        executions.work_out_in_background(ctx, robot_key(participant, task_index), participant.id,
                                           RecordingId(participant.uid, task_index, ex["kind"], ex["index"]),
                                           list(ex["events"]))
     except Exception:  # noqa: BLE001 - the overdue path in sync_execution works it out in the end

@@ -127,7 +127,8 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
                         "trace": None, "p_acceptable": step.p_acceptable,
                         **executions.begin(a.ctx, robot, rid, events)}
         if ts.execution["plan"] is None:
-            a.after_commit.append(lambda: executions.work_out_in_background(a.ctx, robot, rid, events))
+            pid = a.participant.id
+            a.after_commit.append(lambda: executions.work_out_in_background(a.ctx, robot, pid, rid, events))
         a.log("execution_started", {"events": events, "p_acceptable": step.p_acceptable},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
         sync_execution(a.ctx, a.s, a.participant, ts)

@@ -84,6 +84,14 @@ def _stored_execution(client: Any, token: str) -> dict[str, Any]:
         return dict(current_task(s, participant).execution)
 
 
+def _uid(client: Any, token: str) -> str:
+    """The participant's random uid, which names their recordings."""
+    from tableteach.services.state import participant_and_study
+
+    with client.ctx.db.read() as s:
+        return participant_and_study(s, token)[0].uid
+
+
 def test_the_start_answers_before_the_plan_and_the_clock_starts_when_it_is_stored(slow_client) -> None:
     token = _to_first_query(slow_client)
     robot: SlowRobot = slow_client.ctx.robot
@@ -91,7 +99,7 @@ def test_the_start_answers_before_the_plan_and_the_clock_starts_when_it_is_store
     assert started.status_code == 200 and started.json()["execution"]["status"] == "running"
     stored = _stored_execution(slow_client, token)
     assert stored["plan"] is None and stored["recorded"]
-    assert robot.prepared[-1] == "participant-1/task-0/query-0"
+    assert robot.prepared[-1] == f"participant-{_uid(slow_client, token)}/task-0/query-0"
     activity = slow_client.get("/api/v1/me/robot", headers=bearer(token)).json()
     assert activity["moving"] and activity["caption"] == executions.GETTING_READY
     time.sleep(0.3)  # longer than the whole execution would take: without a plan it must not finish
@@ -165,4 +173,4 @@ def test_a_process_asked_about_an_execution_another_was_working_out_takes_it_ove
     while _stored_execution(slow_client, token)["plan"] is None:
         assert time.monotonic() < deadline, "the second process did not take the execution over"
         time.sleep(0.02)
-    assert slow_client.ctx.robot.prepared == ["participant-1/task-0/query-0"]
+    assert slow_client.ctx.robot.prepared == [f"participant-{_uid(slow_client, token)}/task-0/query-0"]
