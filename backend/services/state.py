@@ -81,8 +81,8 @@ def delete_recordings(ctx: Context, participant: ParticipantRow) -> int:
 def session_config(study: StudyRow, participant: ParticipantRow, task_index: int) -> core.SessionConfig:
     return core.SessionConfig(
         task="dinner", prior=study.prior, protocol=participant.condition,
-        # The practice trial is there to learn the interface, so only the first task has one.
-        n_practice=study.n_practice if task_index == 0 else 0,
+        # The practice trial is there to learn the interface, so only the task this participant does first has one.
+        n_practice=study.n_practice if task_sequence(study, participant)[0] == task_index else 0,
         n_demonstrations=study.n_demonstrations, n_queries=study.n_queries, n_tests=study.n_tests,
         criterion=study.criterion, seed=(participant.seed + task_index) % (2**31),
     )

@@ -130,6 +130,21 @@ def test_a_participant_does_the_tasks_in_their_own_order(app_client) -> None:
     assert orders == {(0, 1), (1, 0)}  # 12 draws: both orders (each missing with probability 2^-11)
 
 
+def test_the_practice_trial_comes_before_the_task_a_participant_does_first(app_client) -> None:
+    study = make_study(app_client, tasks=[{"key": "task1"}, {"key": "task2"}], task_order="random",
+                       **{**SHORT, "n_practice": 1})
+    seen = set()
+    for _ in range(12):
+        token, state = to_teaching(app_client, study)
+        first = state["task"]["index"]
+        seen.add(first)
+        assert state["step"]["kind"] == "practice", f"task {first} done first starts without its practice trial"
+        state = demonstrate(app_client, token, ["dinner_plate"])  # the practice trial
+        state = demonstrate(app_client, token, ["dinner_plate"])  # the one demonstration of the first task
+        assert state["task"]["position"] == 1 and state["step"]["kind"] == "demonstration"
+    assert seen == {0, 1}  # both tasks came first at least once (each missing with probability 2^-11)
+
+
 def test_comprehension_quiz_passes_or_screens_out(app_client) -> None:
     quiz = [{"id": "who", "text": "Who places the objects?", "options": ["I do", "The robot"], "correct": 1},
             {"id": "order", "text": "Can the order matter?", "options": ["Yes", "No"], "correct": 0}]
