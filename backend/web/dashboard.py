@@ -3,7 +3,7 @@ server's front page (/), which points participants and experimenters to the righ
 
 from __future__ import annotations
 
-from fastapi import APIRouter
+from fastapi import APIRouter, Request
 from fastapi.responses import FileResponse, HTMLResponse
 
 from .frontend_files import FRONTEND, allowed_file
@@ -50,13 +50,15 @@ this page has nothing to do.</p>
 <p><strong>Running a study?</strong></p>
 <ul>
 <li><a href="/dashboard">Experimenter dashboard</a>: create, pilot, open and monitor studies, download the data.</li>
-<li><a href="/docs">API documentation</a> (the REST API the dashboard and scripted teachers use).</li>
+<li>{api_docs} (the REST API the dashboard and scripted teachers use).</li>
 <li><a href="/healthz">Health check</a>.</li>
 </ul>
 </main></body></html>"""
 
 
 @router.get("/", response_class=HTMLResponse)
-def home() -> HTMLResponse:
-    """The front page: where participants and experimenters should go."""
-    return HTMLResponse(HOME, headers=HEADERS)
+def home(request: Request) -> HTMLResponse:
+    """The front page: where participants and experimenters should go (the API docs page exists in dev mode only)."""
+    dev = request.app.state.settings.dev_mode
+    api_docs = '<a href="/docs">API documentation</a>' if dev else '<a href="/openapi.json">API schema</a>'
+    return HTMLResponse(HOME.replace("{api_docs}", api_docs), headers=HEADERS)

@@ -6,6 +6,7 @@ from __future__ import annotations
 import csv
 import io
 import json
+import re
 import zipfile
 from datetime import timedelta
 from itertools import permutations
@@ -313,6 +314,9 @@ def test_the_front_page_points_to_the_dashboard(app_client) -> None:
     r = app_client.get("/")
     assert r.status_code == 200 and r.headers["content-type"].startswith("text/html")
     assert 'href="/dashboard"' in r.text and "link you were given" in r.text
+    # Every link on it answers: /docs only exists in dev mode, so production links the schema instead.
+    for href in re.findall(r'href="(/[^"]*)"', r.text):
+        assert app_client.get(href).status_code == 200, href
 
 
 def test_bad_input_to_the_new_endpoints_names_the_field(app_client) -> None:
