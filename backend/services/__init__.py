@@ -18,6 +18,7 @@ from .exports import (
     QUESTIONNAIRE_COLUMNS,
     export_rows,
 )
+from .notify import LocalNotifier
 from .monitoring import belief_summary, list_participants
 from .participants import answer_questionnaire, finish_instructions, give_consent, join_study
 from .state import STAGES, Expect, participant_state
@@ -55,6 +56,7 @@ __all__ = [
     "EXPORT_COLUMNS",
     "Expect",
     "ITEM_KINDS",
+    "LocalNotifier",
     "PARTICIPANT_COLUMNS",
     "QUESTIONNAIRE_COLUMNS",
     "STAGES",

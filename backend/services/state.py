@@ -154,6 +154,7 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
         ts = current_task(s, participant)
         if ts is not None and sync_execution(ctx, s, participant, ts):
             commit(s)
+            ctx.notifier.publish(participant.id)
         return state_view(s, participant, study)
 
 
@@ -225,6 +226,7 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
             action = Action(ctx, s, participant, study, key, digest)
             run(action)
             repo.commit(s)
+            ctx.notifier.publish(participant.id)
             if action.plan_ahead is not None:
                 ctx.planner.plan_ahead(action.plan_ahead)
             return state_view(s, participant, study)

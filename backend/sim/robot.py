@@ -86,6 +86,7 @@ class MujocoRobot:
         self._lock = threading.Lock()
         self._reaper: threading.Thread | None = None
         self._closing = threading.Event()
+        self.on_change: Callable[[str], None] | None = None  # told a table's key when its activity changes
 
     # -- Robot -------------------------------------------------------------------------------------
     def reset(self, key: str) -> Labels:
@@ -120,6 +121,7 @@ class MujocoRobot:
                     self._show_still(table)
             self._start_player(table)
             self._refresh(table)
+        self._changed(table)
         return labels
 
     def placed(self, key: str) -> tuple[str, ...] | None:
@@ -144,6 +146,7 @@ class MujocoRobot:
                 table.execution = events
             self._refresh(table)
             self._start_player(table)
+        self._changed(table)
 
     def progress(self, key: str) -> RobotProgress | None:
         """The execution's labels for the actions shown so far, and whether all have been shown."""
@@ -212,7 +215,8 @@ class MujocoRobot:
         table = self._get(key)
         if table is None:
             return None
-        return RobotActivity(table.moving, table.caption if table.moving else "", table.watchers)
+        busy = table.moving or table.clicking
+        return RobotActivity(busy, table.caption if busy else "", table.watchers)
 
     def scene(self, key: str) -> tuple[MujocoWorld, SceneView | None] | None:
         """The table's world and view, for tests and tools that look (never move anything through these)."""
@@ -324,6 +328,7 @@ class MujocoRobot:
                         break
                     caption, segment, is_action = motion
                     table.caption = caption
+                self._changed(table)
                 view = table.view
                 if view is not None:
                     view.set_caption(caption)
@@ -350,6 +355,17 @@ class MujocoRobot:
             if table.view is not None:
                 table.view.set_caption("")
             self._refresh(table)
+            self._changed(table)
+
+    def _changed(self, table: _Table) -> None:
+        """Tell the server that this table's activity changed (it pushes the news to the participant's page)."""
+        callback = self.on_change
+        if callback is None:
+            return
+        try:
+            callback(table.key)
+        except Exception:
+            log.exception("change notice for table %s failed", table.key)
 
     def _refresh(self, table: _Table) -> None:
         """Make exactly the objects a participant may click now clickable."""
@@ -372,7 +388,10 @@ class MujocoRobot:
             if callback is None or table.clicking:
                 return
             table.clicking = True
+            if table.player is None:
+                table.caption = f"The robot is placing the {_pretty(obj)}"
         self._refresh(table)
+        self._changed(table)
         try:
             callback(obj)
         except Exception:
@@ -380,7 +399,10 @@ class MujocoRobot:
         finally:
             with table.lock:
                 table.clicking = False
+                if table.player is None:
+                    table.caption = ""
             self._refresh(table)
+            self._changed(table)
 
     def _ensure_reaper(self) -> None:
         with self._lock:

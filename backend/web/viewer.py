@@ -1,5 +1,6 @@
 """The participant page's live links: the same-origin 3D view (viser's client page plus a websocket proxy
-to the participant's own viser server on 127.0.0.1), the robot's activity, and the one-tab lease.
+to the participant's own viser server on 127.0.0.1), the robot's activity, change notices as server-sent
+events, and the one-tab lease.
 
 This module and tableteach.sim are the only code that knows viser's ports. The proxy checks the
 participant's token and forwards viser's version subprotocol (Sec-WebSocket-Protocol); without it
@@ -11,12 +12,14 @@ from __future__ import annotations
 import asyncio
 import gzip
 import logging
+import time
+from collections.abc import AsyncIterator
 from functools import lru_cache
 from typing import Any
 
 import websockets
 from fastapi import APIRouter, Request, WebSocket
-from fastapi.responses import HTMLResponse, Response
+from fastapi.responses import HTMLResponse, Response, StreamingResponse
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
@@ -30,6 +33,9 @@ log = logging.getLogger(__name__)
 router = APIRouter(tags=["participant page"])
 TabId = Field(min_length=8, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
 CLOSE_POLICY = 1008  # websocket close code: the request broke a rule (bad token, no view now)
+EVENTS_KEEPALIVE_SECONDS = 15.0  # a comment line this often keeps proxies from closing a quiet stream
+EVENTS_STREAM_SECONDS = 300.0  # then the stream ends and the browser reconnects (a restart never waits on it)
+EVENTS_RETRY_MS = 1000
 
 
 class TabIn(BaseModel):
@@ -147,6 +153,36 @@ async def _pump(browser: WebSocket, upstream: Any) -> None:
             await browser.close()
         except (RuntimeError, WebSocketDisconnect):
             pass  # the browser has gone already
+
+
+@router.get("/p/{token}/events", include_in_schema=False)
+async def change_events(token: str, ctx: ContextDep) -> Response:
+    """Server-sent events: `change` with the participant's change counter whenever their state or robot changes.
+
+    EventSource cannot send an Authorization header, so the token comes from the page's own path (the
+    page's address carries it already); the page then reads GET /api/v1/me as usual.
+    """
+    try:
+        state = await run_in_threadpool(services.participant_state, ctx, token)
+    except NotAuthenticated:
+        return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
+    pid = int(state["participant_id"])
+    headers = {"Cache-Control": "no-store", "X-Accel-Buffering": "no", "Referrer-Policy": "no-referrer"}
+    return StreamingResponse(_change_stream(ctx.notifier, pid), media_type="text/event-stream", headers=headers)
+
+
+async def _change_stream(notifier: services.LocalNotifier, pid: int) -> AsyncIterator[str]:
+    """The counter at once, then on every change; keep-alive comments between; ends after a while."""
+    seen = notifier.counter(pid)
+    yield f"retry: {EVENTS_RETRY_MS}\nevent: change\ndata: {seen}\n\n"
+    ends = time.monotonic() + EVENTS_STREAM_SECONDS
+    while (left := ends - time.monotonic()) > 0:
+        current = await notifier.wait(pid, seen, min(EVENTS_KEEPALIVE_SECONDS, left))
+        if current != seen:
+            seen = current
+            yield f"event: change\ndata: {seen}\n\n"
+        else:
+            yield ": still here\n\n"
 
 
 @router.post("/api/v1/me/view", response_model=ViewOut, responses=error_responses(401))
