@@ -42,7 +42,7 @@ from .studies import (
     study_view,
 )
 from .teaching import assess_execution, finish_demonstration, place_object, start_execution
-from .viewing import claim_tab, open_viewer, release_tab, robot_activity
+from .viewing import claim_tab, open_viewer, release_tab, replay_execution, robot_activity
 
 __all__ = [
     "ASSIGNMENTS",
@@ -87,6 +87,7 @@ __all__ = [
     "participant_state",
     "place_object",
     "release_tab",
+    "replay_execution",
     "robot_activity",
     "seed_demo_study",
     "start_execution",

@@ -16,6 +16,7 @@ from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
 from ..sim.recordings import RecordingId
 from .context import Context, app_version, commit, iso
+from .guidance import lay_summary, progress, required_objects
 from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
@@ -26,6 +27,13 @@ STAGES = ("consent", "instructions", "task", "questionnaire", "done", "withdrawn
 
 def robot_key(participant: ParticipantRow, task_index: int) -> str:
     return f"{participant.id}/{task_index}"
+
+
+def apply_speed(ctx: Context, key: str, study: StudyRow) -> None:
+    """Tell a robot that shows motion the study's playback speed for this table (others ignore it)."""
+    set_speed = getattr(ctx.robot, "set_speed", None)
+    if set_speed is not None:
+        set_speed(key, float(study.robot_speed or 1.0))
 
 
 def save_recording(ctx: Context, participant: ParticipantRow, task_index: int, kind: str, index: int) -> None:
@@ -97,7 +105,8 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         ts = current_task(s, participant)
         task = study.tasks[participant.task_index]
         out["task"] = {"index": participant.task_index, "total": len(study.tasks), "name": task["name"],
-                       "instructions": task["instructions"], "key": task["key"]}
+                       "instructions": task["instructions"], "key": task["key"],
+                       "required": required_objects(task)}
         if ts is not None:
             kind, index, total = position_of(ts.state_json)
             out["step"] = {"kind": kind, "index": index, "total": total}
@@ -119,6 +128,9 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         out["completion"] = {"code": participant.completion_code,
                              "redirect_url": _completion_url(study, participant.completion_code),
                              "learned": _learned(s, participant)}
+    configs = [session_config(study, participant, i) for i in range(len(study.tasks))]
+    out["progress"] = progress(configs, participant.stage, participant.task_index, out["step"],
+                               speed=study.robot_speed, questionnaire=bool(study.questionnaire))
     return out
 
 
@@ -129,7 +141,8 @@ def _learned(s: Any, participant: ParticipantRow) -> list[dict[str, Any]]:
     for ts in repo.task_sessions_of(s, participant_id=participant.id):
         b = core.belief(session_of(ts.state_json))
         out.append({"task_index": ts.task_index, "map_formula": space.text_of(b.map_mask),
-                    "map_description": space.describe(b.map_mask)})
+                    "map_description": space.describe(b.map_mask),
+                    "summary": lay_summary(space.clauses_of(b.map_mask))})
     return out
 
 

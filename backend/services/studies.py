@@ -43,6 +43,9 @@ ITEM_KINDS = {"likert5": (1, 5), "rating10": (1, 10), "text": None}
 DEMO_STUDY_ID = "demo"
 
 
+ROBOT_SPEEDS = (1.0, 3.0)  # a study shows the robot's motion 1x to 3x faster than recorded (recordings keep real time)
+
+
 DEFAULT_CONSENT = (
     "You will teach a simulated robot to set a table by showing it and by judging its attempts. "
     "Your actions and answers are recorded without your name. You may stop at any time."
@@ -132,6 +135,11 @@ def _study_values(spec: dict[str, Any]) -> dict[str, Any]:
     for name, value in counts.items():
         if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value <= 20:
             raise InvalidInput(f"{name} must be a whole number from 0 to 20, got {value!r}")
+    speed = spec.get("robot_speed", 1.0)
+    low, high = ROBOT_SPEEDS
+    if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not low <= speed <= high:
+        raise InvalidInput(f"robot_speed must be a number from {ROBOT_SPEEDS[0]:g} to {ROBOT_SPEEDS[1]:g} "
+                           f"(how much faster than real time the robot's motion is shown), got {speed!r}")
     url = spec.get("completion_url")
     if url is not None and not str(url).startswith(("https://", "http://")):
         raise InvalidInput(f"completion_url must start with https:// or http://, got {url!r}")
@@ -148,6 +156,7 @@ def _study_values(spec: dict[str, Any]) -> dict[str, Any]:
         "consent_version": spec.get("consent_version") or "1",
         "completion_url": url,
         "pilot": bool(spec.get("pilot", False)),
+        "robot_speed": float(speed),
         "status": "draft",
     }
 
@@ -161,7 +170,7 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "n_queries": study.n_queries, "n_tests": study.n_tests, "prior": study.prior,
         "criterion": study.criterion, "questionnaire": study.questionnaire,
         "consent_text": study.consent_text, "consent_version": study.consent_version,
-        "completion_url": study.completion_url,
+        "completion_url": study.completion_url, "robot_speed": study.robot_speed,
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }
 

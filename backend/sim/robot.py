@@ -63,6 +63,7 @@ class _Table:
         self.player: threading.Thread | None = None
         self.stop = threading.Event()
         self.last_used = time.monotonic()
+        self.speed = 1.0  # the study's playback rate, on top of the robot's own
 
     @property
     def moving(self) -> bool:
@@ -192,6 +193,34 @@ class MujocoRobot:
             table = self._tables.pop(key, None)
         if table is not None:
             self._shut(table)
+
+    def set_speed(self, key: str, speed: float) -> None:
+        """Show this table's motions `speed` times faster (the study's setting; recordings keep real time)."""
+        if speed <= 0:
+            raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.5")
+        self._table(key).speed = speed
+
+    def replay(self, key: str) -> bool:
+        """Show the table's finished execution again from its recorded motion (no re-planning, no new physics).
+
+        False if there is nothing to show: no finished execution, or the robot is still moving."""
+        table = self._get(key)
+        if table is None:
+            return False
+        with table.ops:
+            with table.lock:
+                ex = table.execution
+                if ex is None or table.shown < len(ex) or table.player is not None or table.pending:
+                    return False
+                recording = table.world.recording
+                if len(recording) < 2:
+                    return False
+                table.pending.append(("Showing the robot's attempt again", recording.since(0)))
+                if table.view is not None:
+                    table.view.set_poses(recording.bodies, recording.poses[0])
+            self._start_player(table)
+        self._changed(table)
+        return True
 
     # -- ViewingRobot --------------------------------------------------------------------------------
     def open_view(self, key: str, on_click: Callable[[str], None] | None) -> int:
@@ -333,7 +362,7 @@ class MujocoRobot:
                 if view is not None:
                     view.set_caption(caption)
                     if view.client_count > 0:
-                        play(segment, view, speed=self.speed, stop=table.stop)
+                        play(segment, view, speed=self.speed * table.speed, stop=table.stop)
                 if table.stop.is_set():
                     break
                 with table.lock:

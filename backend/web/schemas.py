@@ -68,6 +68,7 @@ class ParticipantState(BaseModel):
     execution: dict[str, Any] | None
     questionnaire: list[dict[str, Any]] | None
     completion: dict[str, Any] | None
+    progress: dict[str, Any] | None = Field(None, description="{done, total, minutes_left}: steps of the whole study")
     replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
 
 
@@ -109,6 +110,8 @@ class StudyIn(Strict):
     completion_url: str | None = Field(None, max_length=500, pattern=r"^https?://\S+$",
                                        description="redirect after completion; {code} is replaced")
     pilot: bool = False
+    robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
+                               "than real time (recordings keep real time)")
 
 
 class StudyOut(BaseModel):
@@ -129,6 +132,7 @@ class StudyOut(BaseModel):
     consent_text: str
     consent_version: str
     completion_url: str | None
+    robot_speed: float = 1.0
     created_at: str | None
     updated_at: str | None
 

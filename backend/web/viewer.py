@@ -26,8 +26,8 @@ from starlette.websockets import WebSocketDisconnect
 
 from .. import services
 from ..errors import NotAuthenticated
-from .deps import ContextDep, TokenDep
-from .schemas import error_responses
+from .deps import ContextDep, IdempotencyKey, TokenDep
+from .schemas import ParticipantState, StepGuard, error_responses
 
 log = logging.getLogger(__name__)
 router = APIRouter(tags=["participant page"])
@@ -71,11 +71,29 @@ def viewer_path(token: str) -> str:
     return f"/p/{token}/viewer/"
 
 
+# viser 1.1 cannot hide its control panel (main_panel.minimize() still opens it on a narrow screen). It shows
+# the websocket address (with the participant's token), "Save Canvas", "Dev Settings" and a scene tree whose
+# eye icons hide objects, and pop-up notices cover the scene. The participant's copy of the client page
+# hides all of them: the panel and the notices are viser's only Mantine Paper and Notifications roots.
+PARTICIPANT_CLIENT_STYLE = b"""<style id="tableteach-participant">
+.mantine-Paper-root, .mantine-Notifications-root, .mantine-Modal-root, .mantine-Popover-dropdown,
+.mantine-Menu-dropdown { display: none !important; }
+</style>"""
+
+
+def participant_client_html(raw: bytes) -> bytes:
+    """Viser's client page with the participant's style sheet added (ValueError if the page has no </head>)."""
+    at = raw.find(b"</head>")
+    if at < 0:
+        raise ValueError("viser's client page has no </head>: expected the built index.html of viser 1.1")
+    return raw[:at] + PARTICIPANT_CLIENT_STYLE + raw[at:]
+
+
 @lru_cache(maxsize=1)
 def _client_bytes() -> tuple[bytes, bytes]:
     from ..sim.viewer_client import client_html
 
-    raw = client_html()
+    raw = participant_client_html(client_html())
     return raw, gzip.compress(raw, compresslevel=6)
 
 
@@ -190,6 +208,14 @@ def open_view(ctx: ContextDep, token: TokenDep) -> dict:
     """Prepare the participant's 3D view for the current step; the page embeds `url` when available."""
     port = services.open_viewer(ctx, token)
     return {"available": port is not None, "url": viewer_path(token) if port is not None else None}
+
+
+@router.post("/api/v1/me/execution/replay", response_model=ParticipantState,
+             responses=error_responses(400, 401, 409, 422))
+async def replay(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None, body: StepGuard | None = None) -> dict:
+    """Show the robot's finished execution again in the 3D view (recorded motion); logged as replay_watched."""
+    expect = services.Expect() if body is None else services.Expect(body.task_index, body.step_kind, body.step_index)
+    return await run_in_threadpool(services.replay_execution, ctx, token, expect=expect, key=key)
 
 
 @router.get("/api/v1/me/robot", response_model=ActivityOut, responses=error_responses(401))
