@@ -4,6 +4,11 @@
 import { h, pretty } from "./dom.js";
 
 const list = (objs) => (objs.length ? objs.map(pretty).join(", ") : "nothing yet");
+/** "the bowl", "the bowl and the knife", "the bowl, the knife and the fork". */
+const theList = (objs) => {
+  const named = objs.map((o) => `the ${pretty(o)}`);
+  return named.length > 1 ? `${named.slice(0, -1).join(", ")} and ${named[named.length - 1]}` : named.join("");
+};
 const GOAL_PICTURES = { task1: "goal-task1.png", task2: "goal-task2.png" };
 const STEP_NAMES = { practice: "Practice round", demonstration: "Demonstration", query: "Question", test: "Test" };
 const LIKERT = ["Strongly disagree", "Disagree", "Neither", "Agree", "Strongly agree"];
@@ -124,8 +129,8 @@ function demonstrationPanel(state, live, { onPlace, onFinish, onConfirmFinish, o
         onclick: () => onPlace(obj) }, pretty(obj)))) : null,
     confirming && !moving
       ? h("div", { class: "confirm", id: "confirm-finish", role: "alertdialog", "aria-labelledby": "confirm-text" },
-        h("p", { id: "confirm-text" }, h("strong", {}, `This task asks for ${list(missing)} too, `),
-          `and ${missing.length === 1 ? "it is" : "they are"} not on Table B yet. Finish anyway?`),
+        h("p", { id: "confirm-text" }, h("strong", {}, `This task asks for ${theList(missing)} too`),
+          `, and ${missing.length === 1 ? "it is" : "they are"} not on Table B yet. Finish anyway?`),
         h("div", { class: "buttons" },
           h("button", { id: "keep-going", class: "primary", onclick: onCancelFinish }, "No, keep placing"),
           h("button", { id: "finish-anyway", onclick: onConfirmFinish }, "Yes, finish now")))
