@@ -48,8 +48,8 @@ def _scene(server, key: str, timeout: float = 30.0):
     raise TimeoutError(f"the robot has no view of table {key}: expected the page to open one")
 
 
-def _click_object(page, server, key: str, obj: str) -> None:
-    """Click an object in the embedded viser view (its position projected through the browser's camera)."""
+def _click_object(page, server, key: str, obj: str) -> float:
+    """Click an object in the embedded viser view (its position projected through the browser's camera); when."""
     world, view = _scene(server, key)
     camera = wait_for_camera(view.server)
     canvas = page.frame_locator("#viewer-frame").locator("canvas").first
@@ -60,7 +60,9 @@ def _click_object(page, server, key: str, obj: str) -> None:
     x, y = project(camera, point, box["width"], box["height"])
     page.mouse.move(box["x"] + x, box["y"] + y)
     time.sleep(0.4)  # let the hover raycast run before pressing
+    clicked = time.time()
     page.mouse.click(box["x"] + x, box["y"] + y)
+    return clicked
 
 
 def _demonstrate_by_clicking(page, server, key: str, objects: list[str]) -> None:
@@ -308,8 +310,7 @@ def _click_until_busy(page, server, key: str, token: str, obj: str) -> float:
     headers = {"Authorization": f"Bearer {token}"}
     for _attempt in range(4):  # software WebGL: a click before the scene has drawn can miss
         page.evaluate(WATCH_BUSY)
-        clicked = time.time()
-        _click_object(page, server, key, obj)
+        clicked = _click_object(page, server, key, obj)
         deadline = time.monotonic() + 10
         while time.monotonic() < deadline:
             state = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()
