@@ -242,15 +242,9 @@ function loadFrame() {
   el.frame.src = viewer.url;
 }
 
+// The viewer page the server sends already hides viser's control panel and pop-up notices.
 el.frame.addEventListener("load", () => {
-  if (!viewer.url) return;
-  el.note.hidden = true;
-  // Same origin: hide viser's pop-up notices (e.g. about software rendering); they cover the scene.
-  try {
-    const style = el.frame.contentDocument.createElement("style");
-    style.textContent = ".mantine-Notifications-root { display: none !important; }";
-    el.frame.contentDocument.head.append(style);
-  } catch { /* not loaded from this origin: nothing to hide */ }
+  if (viewer.url) el.note.hidden = true;
 });
 
 function watchViewer() {

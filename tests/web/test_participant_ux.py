@@ -112,3 +112,14 @@ def test_the_participant_copy_of_the_viewer_hides_its_controls() -> None:
     assert b".mantine-Paper-root" in page and page.index(b"tableteach-participant") < page.index(b"</head>")
     with pytest.raises(ValueError, match="</head>"):
         participant_client_html(b"<html><body></body></html>")
+
+
+def test_the_trace_robot_announces_when_a_timed_execution_finishes() -> None:
+    from tableteach.robot import TraceRobot
+
+    robot = TraceRobot("dinner", seconds_per_object=0.02)
+    told = threading.Event()
+    robot.on_change = lambda key: told.set() if key == "4/0" else None
+    robot.execute("4/0", ["dinner_plate", "bowl"])
+    assert told.wait(2.0)
+    assert robot.progress("4/0").finished
