@@ -75,18 +75,37 @@ def viewer_path(token: str) -> str:
 # the websocket address (with the participant's token), "Save Canvas", "Dev Settings" and a scene tree whose
 # eye icons hide objects, and pop-up notices cover the scene. The participant's copy of the client page
 # hides all of them: the panel and the notices are viser's only Mantine Paper and Notifications roots.
-PARTICIPANT_CLIENT_STYLE = b"""<style id="tableteach-participant">
+# It also paces viser's render loop, which draws every frame whether or not anything moved: after a frame
+# that took d ms the next starts no sooner than d ms later, so the page around the view (same process, same
+# main thread) keeps at least half of it. A GPU draws a frame in a millisecond or two and is not slowed; a
+# machine drawing in software stays responsive (its panel follows the robot) at a lower frame rate.
+PARTICIPANT_CLIENT_HEAD = b"""<style id="tableteach-participant">
 .mantine-Paper-root, .mantine-Notifications-root, .mantine-Modal-root, .mantine-Popover-dropdown,
 .mantine-Menu-dropdown { display: none !important; }
-</style>"""
+</style>
+<script id="tableteach-pacing">
+(() => {
+  const nativeFrame = window.requestAnimationFrame.bind(window);
+  let freeUntil = 0;
+  window.requestAnimationFrame = (callback) => {
+    const run = (time) => {
+      const wait = freeUntil - performance.now();
+      if (wait > 1) { setTimeout(() => nativeFrame(run), wait); return; }
+      const start = performance.now();
+      try { callback(time); } finally { freeUntil = performance.now() + (performance.now() - start); }
+    };
+    return nativeFrame(run);
+  };
+})();
+</script>"""
 
 
 def participant_client_html(raw: bytes) -> bytes:
-    """Viser's client page with the participant's style sheet added (ValueError if the page has no </head>)."""
+    """Viser's client page with the participant's style sheet and frame pacing (ValueError without a </head>)."""
     at = raw.find(b"</head>")
     if at < 0:
         raise ValueError("viser's client page has no </head>: expected the built index.html of viser 1.1")
-    return raw[:at] + PARTICIPANT_CLIENT_STYLE + raw[at:]
+    return raw[:at] + PARTICIPANT_CLIENT_HEAD + raw[at:]
 
 
 @lru_cache(maxsize=1)
