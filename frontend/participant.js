@@ -116,7 +116,12 @@ const handlers = {
   },
   onConfirmFinish: () => { confirming = false; act(() => api.finishDemonstration(guard())); },
   onCancelFinish: () => { confirming = false; render(true); document.getElementById("finish")?.focus(); },
-  onReplay: () => act(() => api.replay(guard())),
+  onReplay: () => act(async () => {
+    const next = await api.replay(guard());
+    // The robot has started the replay: the answer buttons wait for it (the change event confirms it).
+    live = { ...live, moving: true, caption: "Showing the robot's attempt again" };
+    return next;
+  }),
   onStartExecution: () => act(() => api.startExecution(guard())),
   onAssess: (acceptable) => act(() => api.assess(acceptable, guard())),
   onSubmit: (answers) => act(() => api.answerQuestionnaire(answers)),
