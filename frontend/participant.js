@@ -312,8 +312,12 @@ function listen() {
   events = new EventSource(`${window.location.pathname.replace(/\/$/, "")}/events`);
   events.addEventListener("open", () => { eventsOpen = true; });
   events.addEventListener("error", () => { eventsOpen = false; }); // EventSource reconnects by itself
-  events.addEventListener("change", () => {
+  events.addEventListener("change", (event) => {
     if (blocked) return;
+    // The event carries the robot's activity: show "busy" at once, then read the state.
+    let robot = null;
+    try { robot = JSON.parse(event.data).robot; } catch { /* an older server: read everything */ }
+    if (robot && state?.stage === "task") setState(null, robot);
     refresh().catch((error) => { if (error instanceof ApiError) handleError(error); else console.error(error); });
   });
 }

@@ -11,9 +11,10 @@ from __future__ import annotations
 
 import asyncio
 import gzip
+import json
 import logging
 import time
-from collections.abc import AsyncIterator
+from collections.abc import AsyncIterator, Awaitable, Callable
 from functools import lru_cache
 from typing import Any
 
@@ -194,10 +195,11 @@ async def _pump(browser: WebSocket, upstream: Any) -> None:
 
 @router.get("/p/{token}/events", include_in_schema=False)
 async def change_events(token: str, ctx: ContextDep) -> Response:
-    """Server-sent events: `change` with the participant's change counter whenever their state or robot changes.
+    """Server-sent events: `change` whenever the participant's state or robot changes.
 
-    EventSource cannot send an Authorization header, so the token comes from the page's own path (the
-    page's address carries it already); the page then reads GET /api/v1/me as usual.
+    Each event's data is {"n": change counter, "robot": GET /me/robot's answer}, so the page can show the
+    robot busy at once; it then reads GET /api/v1/me as usual. EventSource cannot send an Authorization
+    header, so the token comes from the page's own path (the page's address carries it already).
     """
     try:
         state = await run_in_threadpool(services.participant_state, ctx, token)
@@ -205,21 +207,34 @@ async def change_events(token: str, ctx: ContextDep) -> Response:
         return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
     pid = int(state["participant_id"])
     headers = {"Cache-Control": "no-store", "X-Accel-Buffering": "no", "Referrer-Policy": "no-referrer"}
-    return StreamingResponse(_change_stream(ctx.notifier, pid), media_type="text/event-stream", headers=headers)
+    def activity() -> dict | None:
+        try:
+            return services.robot_activity(ctx, token)
+        except Exception:  # the activity is a head start for the page; it reads the state next anyway
+            log.exception("robot activity for a change event failed")
+            return None
+
+    stream = _change_stream(ctx.notifier, pid, lambda: run_in_threadpool(activity))
+    return StreamingResponse(stream, media_type="text/event-stream", headers=headers)
 
 
-async def _change_stream(notifier: services.LocalNotifier, pid: int) -> AsyncIterator[str]:
-    """The counter at once, then on every change; keep-alive comments between; ends after a while."""
+async def _change_stream(notifier: services.LocalNotifier, pid: int,
+                         activity: Callable[[], Awaitable[dict | None]]) -> AsyncIterator[str]:
+    """A change event at once, then on every change; keep-alive comments between; ends after a while."""
     seen = notifier.counter(pid)
-    yield f"retry: {EVENTS_RETRY_MS}\nevent: change\ndata: {seen}\n\n"
+    yield f"retry: {EVENTS_RETRY_MS}\n" + _event(seen, await activity())
     ends = time.monotonic() + EVENTS_STREAM_SECONDS
     while (left := ends - time.monotonic()) > 0:
         current = await notifier.wait(pid, seen, min(EVENTS_KEEPALIVE_SECONDS, left))
         if current != seen:
             seen = current
-            yield f"event: change\ndata: {seen}\n\n"
+            yield _event(seen, await activity())
         else:
             yield ": still here\n\n"
+
+
+def _event(counter: int, robot: dict | None) -> str:
+    return f"event: change\ndata: {json.dumps({'n': counter, 'robot': robot}, separators=(',', ':'))}\n\n"
 
 
 @router.post("/api/v1/me/view", response_model=ViewOut, responses=error_responses(401))

@@ -36,8 +36,11 @@ def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise()
 def test_the_event_stream_sends_the_counter_then_each_change() -> None:
     notifier = LocalNotifier()
 
+    async def activity() -> dict:
+        return {"moving": notifier.counter(3) > 0}
+
     async def scenario() -> list[str]:
-        stream = _change_stream(notifier, 3)
+        stream = _change_stream(notifier, 3, activity)
         first = await anext(stream)
         asyncio.get_running_loop().call_later(0.05, notifier.publish, 3)
         second = await asyncio.wait_for(anext(stream), 5.0)
@@ -45,8 +48,8 @@ def test_the_event_stream_sends_the_counter_then_each_change() -> None:
         return [first, second]
 
     first, second = asyncio.run(scenario())
-    assert first.startswith("retry: ") and "event: change\ndata: 0\n\n" in first
-    assert second == "event: change\ndata: 1\n\n"
+    assert first.startswith("retry: ") and 'event: change\ndata: {"n":0,"robot":{"moving":false}}\n\n' in first
+    assert second == 'event: change\ndata: {"n":1,"robot":{"moving":true}}\n\n'
 
 
 def test_every_stored_action_publishes_a_change_for_that_participant(app_client) -> None:
