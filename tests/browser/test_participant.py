@@ -306,17 +306,19 @@ def _check_screen(page, token: str) -> None:
 
 
 def _click_until_busy(page, server, key: str, token: str, obj: str) -> float:
-    """Click an object in the 3D view until it is taken; seconds from the click to the panel showing the robot busy."""
+    """Click an object in the 3D view until it is taken; seconds from that click to the panel showing the robot busy."""
     headers = {"Authorization": f"Bearer {token}"}
+    page.evaluate(WATCH_BUSY)
+    clicks = []
     for _attempt in range(4):  # software WebGL: a click before the scene has drawn can miss
-        page.evaluate(WATCH_BUSY)
-        clicked = _click_object(page, server, key, obj)
-        deadline = time.monotonic() + 10
+        clicks.append(_click_object(page, server, key, obj))
+        deadline = time.monotonic() + 15
         while time.monotonic() < deadline:
             state = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()
             if obj in (state["demonstration"] or {}).get("placed", []):
                 page.wait_for_function("() => window.busyAt !== null", timeout=10_000)
-                return page.evaluate("() => window.busyAt") / 1000 - clicked
+                busy = page.evaluate("() => window.busyAt") / 1000
+                return busy - max(c for c in clicks if c <= busy)  # the click that was taken
             time.sleep(0.2)
     raise AssertionError(f"the {obj} was never placed by clicking it in the 3D view")
 
@@ -378,8 +380,9 @@ def test_a_new_participant_walks_through_every_screen_without_dead_ends(chromium
         page.get_by_role("button", name="Watch the robot").click()
         page.wait_for_selector("#acceptable:not([disabled])", timeout=90_000)
         page.locator("#watch-again").click()
-        page.wait_for_selector("#status.busy", timeout=10_000)
-        assert page.locator("#acceptable").is_disabled()  # the answer waits until the replay has been seen
+        # While the replay runs the panel says so and the answer waits until it has been seen.
+        page.wait_for_function("() => document.querySelector('#status.busy') && "
+                               "document.querySelector('#acceptable').disabled", timeout=10_000)
         page.wait_for_selector("#acceptable:not([disabled])", timeout=90_000)
         _check_screen(page, token)
         page.locator("#acceptable").click()
