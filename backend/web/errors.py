@@ -32,7 +32,10 @@ def _validation_message(exc: RequestValidationError) -> str:
 
 def _for(request: Request, answer: JSONResponse) -> Response:
     """Participant-facing pages (/study/..., /p/...) answer a plain-words HTML page instead of JSON."""
-    return error_page(answer.status_code) if is_page(request.url.path) else answer
+    if not is_page(request.url.path):
+        return answer
+    own = {k: v for k, v in answer.headers.items() if k not in ("content-type", "content-length")}
+    return error_page(answer.status_code, own)
 
 
 def install(app: FastAPI) -> None:

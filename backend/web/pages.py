@@ -63,17 +63,20 @@ def is_page(path: str) -> bool:
     return path.startswith(PAGE_PREFIXES)
 
 
-def error_page(status: int) -> HTMLResponse:
-    """A plain-words HTML page for an error on a participant-facing address: what happened, what to do."""
+def error_page(status: int, headers: dict[str, str] | None = None) -> HTMLResponse:
+    """A plain-words HTML page for an error on a participant-facing address: what happened, what to do.
+
+    `headers` are the error's own (e.g. Allow on a 405)."""
     title, body = PAGE_ERRORS.get(status, SERVER_ERROR if status >= 500 else PAGE_ERRORS[400])
     return HTMLResponse(PAGE.format(title=title, body=body + CONTACT), status_code=status,
-                        headers={"Referrer-Policy": "no-referrer", "Cache-Control": "no-store"})
+                        headers={**(headers or {}), "Referrer-Policy": "no-referrer", "Cache-Control": "no-store"})
 
 
 @router.get("/study/{study_id}/join", response_class=RedirectResponse, status_code=303,
             responses={303: {"description": "to the participant's page /p/{token}"},
                        404: {"description": "no such study (an HTML page)", "content": {"text/html": {}}},
-                       409: {"description": "the study is not open (an HTML page)", "content": {"text/html": {}}}})
+                       409: {"description": "the study is not open (an HTML page)", "content": {"text/html": {}}},
+                       422: {"description": "a damaged link (an HTML page)", "content": {"text/html": {}}}})
 def join_link(study_id: str, ctx: ContextDep, PROLIFIC_PID: ExternalId = None, STUDY_ID: ExternalId = None,  # noqa: N803
               SESSION_ID: ExternalId = None) -> RedirectResponse:  # noqa: N803
     """The link given to participants: creates (or finds, by PROLIFIC_PID) the participant and redirects."""
