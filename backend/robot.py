@@ -107,6 +107,7 @@ class TraceRobot:
         self.seconds_per_object = seconds_per_object
         self._tables: dict[str, _Table] = {}
         self._lock = threading.Lock()
+        self.on_change: Callable[[str], None] | None = None  # told a table's key when a timed execution finishes
 
     def reset(self, key: str) -> Labels:
         """Clear the table; the initial labels."""
@@ -140,6 +141,10 @@ class TraceRobot:
         with self._lock:
             self._tables[key] = _Table(placed=list(events), execution=tuple(events), trace=trace,
                                        started=time.monotonic())
+        if self.seconds_per_object > 0 and self.on_change is not None:
+            timer = threading.Timer(self.seconds_per_object * len(events) + 0.01, self.on_change, args=(key,))
+            timer.daemon = True
+            timer.start()
 
     def progress(self, key: str) -> RobotProgress | None:
         """The execution's labels so far and whether it has finished."""

@@ -14,6 +14,7 @@ from ..db import repository as repo
 from ..db.engine import Database
 from ..errors import Conflict
 from ..robot import Robot, TraceRobot
+from .notify import LocalNotifier, participant_of_key
 from .planning import Planner
 
 
@@ -65,6 +66,17 @@ class Context:
     settings: Settings
     tabs: TabLeases = field(default_factory=TabLeases)
     planner: Planner = field(default_factory=Planner)
+    notifier: LocalNotifier = field(default_factory=LocalNotifier)
+
+    def __post_init__(self) -> None:
+        # A robot that reports its own changes (motion starts, next action, stops) tells the participant's page.
+        if hasattr(self.robot, "on_change"):
+            self.robot.on_change = self._robot_changed  # type: ignore[attr-defined]
+
+    def _robot_changed(self, key: str) -> None:
+        participant_id = participant_of_key(key)
+        if participant_id is not None:
+            self.notifier.publish(participant_id)
 
     @staticmethod
     def from_settings(settings: Settings, robot: Robot | None = None) -> "Context":

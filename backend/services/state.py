@@ -17,6 +17,7 @@ from ..errors import Conflict, NotAuthenticated
 from ..sim import recordings
 from ..sim.recordings import RecordingId
 from .context import Context, app_version, aware, commit, iso
+from .guidance import lay_summary, progress, required_objects
 from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
@@ -58,6 +59,13 @@ def mark_timed_out(s: Any, participant: ParticipantRow) -> None:
 
 def robot_key(participant: ParticipantRow, task_index: int) -> str:
     return f"{participant.id}/{task_index}"
+
+
+def apply_speed(ctx: Context, key: str, study: StudyRow) -> None:
+    """Tell a robot that shows motion the study's playback speed for this table (others ignore it)."""
+    set_speed = getattr(ctx.robot, "set_speed", None)
+    if set_speed is not None:
+        set_speed(key, float(study.robot_speed or 1.0))
 
 
 def save_recording(ctx: Context, participant: ParticipantRow, task_index: int, kind: str, index: int) -> None:
@@ -138,7 +146,7 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         sequence = task_sequence(study, participant)
         out["task"] = {"index": participant.task_index, "total": len(study.tasks), "name": task["name"],
                        "instructions": task["instructions"], "key": task["key"],
-                       "position": sequence.index(participant.task_index)}
+                       "position": sequence.index(participant.task_index), "required": required_objects(task)}
         if ts is not None:
             kind, index, total = position_of(ts.state_json)
             out["step"] = {"kind": kind, "index": index, "total": total}
@@ -172,6 +180,12 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
                              "redirect_url": _completion_url(study, code), "learned": []}
     elif participant.stage == "withdrawn":
         out["completion"] = {"code": None, "reason": participant.end_reason, "redirect_url": None, "learned": []}
+    # Progress follows the participant's own task order (counterbalancing): position, not the task's index.
+    sequence = task_sequence(study, participant)
+    configs = [session_config(study, participant, i) for i in sequence]
+    position = sequence.index(participant.task_index) if participant.task_index in sequence else 0
+    out["progress"] = progress(configs, participant.stage, position, out["step"],
+                               speed=study.robot_speed, questionnaire=bool(study.questionnaire))
     return out
 
 
@@ -182,7 +196,8 @@ def _learned(s: Any, participant: ParticipantRow) -> list[dict[str, Any]]:
     for ts in repo.task_sessions_of(s, participant_id=participant.id):
         b = core.belief(session_of(ts.state_json))
         out.append({"task_index": ts.task_index, "map_formula": space.text_of(b.map_mask),
-                    "map_description": space.describe(b.map_mask)})
+                    "map_description": space.describe(b.map_mask),
+                    "summary": lay_summary(space.clauses_of(b.map_mask))})
     return out
 
 
@@ -212,6 +227,7 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
         ts = current_task(s, participant)
         if ts is not None and sync_execution(ctx, s, participant, ts):
             commit(s)
+            ctx.notifier.publish(participant.id)
         return state_view(s, participant, study)
 
 
@@ -290,6 +306,7 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
             action = Action(ctx, s, participant, study, key, digest)
             run(action)
             repo.commit(s)
+            ctx.notifier.publish(participant.id)
             if action.plan_ahead is not None:
                 ctx.planner.plan_ahead(action.plan_ahead)
             return state_view(s, participant, study)

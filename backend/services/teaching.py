@@ -16,6 +16,7 @@ from .state import (
     Action,
     Expect,
     act,
+    apply_speed,
     require_stage,
     robot_key,
     save_recording,
@@ -119,6 +120,7 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
         step = a.ctx.planner.step(ts.state_json)
         assert step.robot_execution is not None
         events = list(step.robot_execution.events)
+        apply_speed(a.ctx, robot_key(a.participant, ts.task_index), a.study)
         a.ctx.robot.execute(robot_key(a.participant, ts.task_index), events)
         ts.execution = {"kind": step.kind, "index": step.index, "events": events, "status": "running",
                         "trace": None, "p_acceptable": step.p_acceptable, "started_at": utcnow().isoformat()}

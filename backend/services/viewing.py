@@ -10,7 +10,8 @@ from ..errors import Conflict, InvalidInput
 from ..robot import ViewingRobot
 from .context import Context
 from .planning import position_of
-from .state import Expect, current_task, participant_and_study, robot_key
+from .state import Action, Expect, act, apply_speed, current_task, participant_and_study, robot_key
+from .teaching import _teaching as teaching_step  # the same step check as the other teaching actions
 from .teaching import place_object
 
 log = logging.getLogger(__name__)
@@ -36,6 +37,7 @@ def open_viewer(ctx: Context, token: str) -> int | None:
             return None
         kind, index, _ = position_of(ts.state_json)
         key = robot_key(participant, ts.task_index)
+        apply_speed(ctx, key, study_row)
         on_click: Callable[[str], None] | None = None
         if kind in ("practice", "demonstration"):
             if ts.demo_trace and robot.placed(key) != tuple(ts.demo_placed):
@@ -60,6 +62,24 @@ def _place_clicked(ctx: Context, token: str, obj: str, expect: Expect) -> None:
         place_object(ctx, token, obj=obj, expect=expect)
     except (Conflict, InvalidInput) as exc:
         log.info("click on %s not placed: %s", obj, exc.message)
+
+
+def replay_execution(ctx: Context, token: str, *, expect: Expect, key: str | None = None) -> dict[str, Any]:
+    """Show the robot's finished execution again in the 3D view (its recorded motion) and log that it was watched."""
+    def run(a: Action) -> None:
+        ts, _state, step = teaching_step(a, expect, ("query", "test"))
+        ex = ts.execution
+        if ex is None or (ex["kind"], ex["index"]) != (step.kind, step.index) or ex["status"] != "finished":
+            raise Conflict(f"there is nothing to watch again yet: {step.kind} {step.index + 1} has not finished; "
+                           "watch again once the robot has finished")
+        replay = getattr(a.ctx.robot, "replay", None)
+        if replay is None or not replay(robot_key(a.participant, ts.task_index)):
+            raise Conflict("the robot cannot show this attempt again right now (it is moving, or this robot has "
+                           "no 3D view); wait until it stands still")
+        a.log("replay_watched", {"events": ex["events"]}, task_index=ts.task_index, step_kind=step.kind,
+              step_index=step.index)
+
+    return act(ctx, token, "replay", dict(expect.__dict__), key, run)
 
 
 def robot_activity(ctx: Context, token: str) -> dict[str, Any]:

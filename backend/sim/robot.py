@@ -63,6 +63,7 @@ class _Table:
         self.player: threading.Thread | None = None
         self.stop = threading.Event()
         self.last_used = time.monotonic()
+        self.speed = 1.0  # the study's playback rate, on top of the robot's own
 
     @property
     def moving(self) -> bool:
@@ -86,6 +87,7 @@ class MujocoRobot:
         self._lock = threading.Lock()
         self._reaper: threading.Thread | None = None
         self._closing = threading.Event()
+        self.on_change: Callable[[str], None] | None = None  # told a table's key when its activity changes
 
     # -- Robot -------------------------------------------------------------------------------------
     def reset(self, key: str) -> Labels:
@@ -120,6 +122,7 @@ class MujocoRobot:
                     self._show_still(table)
             self._start_player(table)
             self._refresh(table)
+        self._changed(table)
         return labels
 
     def placed(self, key: str) -> tuple[str, ...] | None:
@@ -144,6 +147,7 @@ class MujocoRobot:
                 table.execution = events
             self._refresh(table)
             self._start_player(table)
+        self._changed(table)
 
     def progress(self, key: str) -> RobotProgress | None:
         """The execution's labels for the actions shown so far, and whether all have been shown."""
@@ -190,6 +194,34 @@ class MujocoRobot:
         if table is not None:
             self._shut(table)
 
+    def set_speed(self, key: str, speed: float) -> None:
+        """Show this table's motions `speed` times faster (the study's setting; recordings keep real time)."""
+        if speed <= 0:
+            raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.5")
+        self._table(key).speed = speed
+
+    def replay(self, key: str) -> bool:
+        """Show the table's finished execution again from its recorded motion (no re-planning, no new physics).
+
+        False if there is nothing to show: no finished execution, or the robot is still moving."""
+        table = self._get(key)
+        if table is None:
+            return False
+        with table.ops:
+            with table.lock:
+                ex = table.execution
+                if ex is None or table.shown < len(ex) or table.player is not None or table.pending:
+                    return False
+                recording = table.world.recording
+                if len(recording) < 2:
+                    return False
+                table.pending.append(("Showing the robot's attempt again", recording.since(0)))
+                if table.view is not None:
+                    table.view.set_poses(recording.bodies, recording.poses[0])
+            self._start_player(table)
+        self._changed(table)
+        return True
+
     # -- ViewingRobot --------------------------------------------------------------------------------
     def open_view(self, key: str, on_click: Callable[[str], None] | None) -> int:
         """The table's viser port (started on first use); waiting objects report clicks to on_click."""
@@ -212,7 +244,8 @@ class MujocoRobot:
         table = self._get(key)
         if table is None:
             return None
-        return RobotActivity(table.moving, table.caption if table.moving else "", table.watchers)
+        busy = table.moving or table.clicking
+        return RobotActivity(busy, table.caption if busy else "", table.watchers)
 
     def scene(self, key: str) -> tuple[MujocoWorld, SceneView | None] | None:
         """The table's world and view, for tests and tools that look (never move anything through these)."""
@@ -324,11 +357,12 @@ class MujocoRobot:
                         break
                     caption, segment, is_action = motion
                     table.caption = caption
+                self._changed(table)
                 view = table.view
                 if view is not None:
                     view.set_caption(caption)
                     if view.client_count > 0:
-                        play(segment, view, speed=self.speed, stop=table.stop)
+                        play(segment, view, speed=self.speed * table.speed, stop=table.stop)
                 if table.stop.is_set():
                     break
                 with table.lock:
@@ -350,6 +384,17 @@ class MujocoRobot:
             if table.view is not None:
                 table.view.set_caption("")
             self._refresh(table)
+            self._changed(table)
+
+    def _changed(self, table: _Table) -> None:
+        """Tell the server that this table's activity changed (it pushes the news to the participant's page)."""
+        callback = self.on_change
+        if callback is None:
+            return
+        try:
+            callback(table.key)
+        except Exception:
+            log.exception("change notice for table %s failed", table.key)
 
     def _refresh(self, table: _Table) -> None:
         """Make exactly the objects a participant may click now clickable."""
@@ -372,7 +417,10 @@ class MujocoRobot:
             if callback is None or table.clicking:
                 return
             table.clicking = True
+            if table.player is None:
+                table.caption = f"The robot is placing the {_pretty(obj)}"
         self._refresh(table)
+        self._changed(table)
         try:
             callback(obj)
         except Exception:
@@ -380,7 +428,10 @@ class MujocoRobot:
         finally:
             with table.lock:
                 table.clicking = False
+                if table.player is None:
+                    table.caption = ""
             self._refresh(table)
+            self._changed(table)
 
     def _ensure_reaper(self) -> None:
         with self._lock:

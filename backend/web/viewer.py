@@ -1,5 +1,6 @@
 """The participant page's live links: the same-origin 3D view (viser's client page plus a websocket proxy
-to the participant's own viser server on 127.0.0.1), the robot's activity, and the one-tab lease.
+to the participant's own viser server on 127.0.0.1), the robot's activity, change notices as server-sent
+events, and the one-tab lease.
 
 This module and tableteach.sim are the only code that knows viser's ports. The proxy checks the
 participant's token and forwards viser's version subprotocol (Sec-WebSocket-Protocol); without it
@@ -10,26 +11,32 @@ from __future__ import annotations
 
 import asyncio
 import gzip
+import json
 import logging
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable
 from functools import lru_cache
 from typing import Any
 
 import websockets
 from fastapi import APIRouter, Request, WebSocket
-from fastapi.responses import HTMLResponse, Response
+from fastapi.responses import HTMLResponse, Response, StreamingResponse
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
 
 from .. import services
 from ..errors import NotAuthenticated
-from .deps import ContextDep, TokenDep
-from .schemas import error_responses
+from .deps import ContextDep, IdempotencyKey, TokenDep
+from .schemas import ParticipantState, StepGuard, error_responses
 
 log = logging.getLogger(__name__)
 router = APIRouter(tags=["participant page"])
 TabId = Field(min_length=8, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
 CLOSE_POLICY = 1008  # websocket close code: the request broke a rule (bad token, no view now)
+EVENTS_KEEPALIVE_SECONDS = 15.0  # a comment line this often keeps proxies from closing a quiet stream
+EVENTS_STREAM_SECONDS = 300.0  # then the stream ends and the browser reconnects (a restart never waits on it)
+EVENTS_RETRY_MS = 1000
 
 
 class TabIn(BaseModel):
@@ -65,11 +72,73 @@ def viewer_path(token: str) -> str:
     return f"/p/{token}/viewer/"
 
 
+# viser 1.1 cannot hide its control panel (main_panel.minimize() still opens it on a narrow screen). It shows
+# the websocket address (with the participant's token), "Save Canvas", "Dev Settings" and a scene tree whose
+# eye icons hide objects, and pop-up notices cover the scene. The participant's copy of the client page
+# hides all of them: the panel and the notices are viser's only Mantine Paper and Notifications roots.
+# It also paces viser's render loop, which draws every frame whether or not anything moved. After a frame
+# that took d ms the next starts no sooner than d ms later, so the page around the view (same origin, same
+# main thread) keeps at least half of it. While nothing arrives on the websocket and the participant does
+# not touch the view for a second, it draws one frame every 5 s (every change arrives on the websocket or
+# comes from input, and either brings the full rate back within 0.1 s). A GPU draws a frame in a millisecond
+# or two and is not slowed while things move; an idle tab costs little CPU; a machine drawing in software
+# stays responsive (its panel follows the robot).
+PARTICIPANT_CLIENT_HEAD = b"""<style id="tableteach-participant">
+.mantine-Paper-root, .mantine-Notifications-root, .mantine-Modal-root, .mantine-Popover-dropdown,
+.mantine-Menu-dropdown { display: none !important; }
+</style>
+<script id="tableteach-pacing">
+(() => {
+  const IDLE_AFTER_MS = 1000, IDLE_FRAME_MS = 5000, RECHECK_MS = 100;
+  let lastActivity = performance.now();
+  const active = () => { lastActivity = performance.now(); };
+  for (const type of ["pointerdown", "pointermove", "wheel", "keydown", "touchstart", "resize", "focus",
+                      "visibilitychange"]) {
+    window.addEventListener(type, active, { capture: true, passive: true });
+  }
+  const NativeSocket = window.WebSocket;
+  window.WebSocket = class extends NativeSocket {
+    constructor(...args) {
+      super(...args);
+      this.addEventListener("message", active);
+    }
+  };
+  const nativeFrame = window.requestAnimationFrame.bind(window);
+  let freeUntil = 0, lastFrame = 0;
+  // Waiting happens in timers: asking for an animation frame makes the browser produce one, drawn or not.
+  window.requestAnimationFrame = (callback) => {
+    const attempt = () => {
+      const now = performance.now();
+      const idle = now - lastActivity > IDLE_AFTER_MS;
+      const wait = Math.max(freeUntil, idle ? lastFrame + IDLE_FRAME_MS : 0) - now;
+      if (wait > 1) { setTimeout(attempt, Math.min(wait, RECHECK_MS)); return; }
+      nativeFrame((time) => {
+        const start = performance.now();
+        lastFrame = start;
+        try { callback(time); } finally { freeUntil = performance.now() + (performance.now() - start); }
+      });
+    };
+    attempt();
+    return 0;  // a paced frame cannot be cancelled; viser's loop never cancels one
+  };
+})();
+</script>"""
+
+
+def participant_client_html(raw: bytes) -> bytes:
+    """Viser's client page with the participant's style sheet and frame pacing (ValueError without a <head>)."""
+    at = raw.find(b"<head>")
+    if at < 0:
+        raise ValueError("viser's client page has no <head>: expected the built index.html of viser 1.1")
+    at += len(b"<head>")  # first in the head: before viser's own scripts look up requestAnimationFrame
+    return raw[:at] + PARTICIPANT_CLIENT_HEAD + raw[at:]
+
+
 @lru_cache(maxsize=1)
 def _client_bytes() -> tuple[bytes, bytes]:
     from ..sim.viewer_client import client_html
 
-    raw = client_html()
+    raw = participant_client_html(client_html())
     return raw, gzip.compress(raw, compresslevel=6)
 
 
@@ -183,11 +252,63 @@ async def _pump(browser: WebSocket, upstream: Any) -> None:
             pass  # the browser has gone already
 
 
+@router.get("/p/{token}/events", include_in_schema=False)
+async def change_events(token: str, ctx: ContextDep) -> Response:
+    """Server-sent events: `change` whenever the participant's state or robot changes.
+
+    Each event's data is {"n": change counter, "robot": GET /me/robot's answer}, so the page can show the
+    robot busy at once; it then reads GET /api/v1/me as usual. EventSource cannot send an Authorization
+    header, so the token comes from the page's own path (the page's address carries it already).
+    """
+    try:
+        state = await run_in_threadpool(services.participant_state, ctx, token)
+    except NotAuthenticated:
+        return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
+    pid = int(state["participant_id"])
+    headers = {"Cache-Control": "no-store", "X-Accel-Buffering": "no", "Referrer-Policy": "no-referrer"}
+    def activity() -> dict | None:
+        try:
+            return services.robot_activity(ctx, token)
+        except Exception:  # the activity is a head start for the page; it reads the state next anyway
+            log.exception("robot activity for a change event failed")
+            return None
+
+    stream = _change_stream(ctx.notifier, pid, lambda: run_in_threadpool(activity))
+    return StreamingResponse(stream, media_type="text/event-stream", headers=headers)
+
+
+async def _change_stream(notifier: services.LocalNotifier, pid: int,
+                         activity: Callable[[], Awaitable[dict | None]]) -> AsyncIterator[str]:
+    """A change event at once, then on every change; keep-alive comments between; ends after a while."""
+    seen = notifier.counter(pid)
+    yield f"retry: {EVENTS_RETRY_MS}\n" + _event(seen, await activity())
+    ends = time.monotonic() + EVENTS_STREAM_SECONDS
+    while (left := ends - time.monotonic()) > 0:
+        current = await notifier.wait(pid, seen, min(EVENTS_KEEPALIVE_SECONDS, left))
+        if current != seen:
+            seen = current
+            yield _event(seen, await activity())
+        else:
+            yield ": still here\n\n"
+
+
+def _event(counter: int, robot: dict | None) -> str:
+    return f"event: change\ndata: {json.dumps({'n': counter, 'robot': robot}, separators=(',', ':'))}\n\n"
+
+
 @router.post("/api/v1/me/view", response_model=ViewOut, responses=error_responses(401))
 def open_view(ctx: ContextDep, token: TokenDep) -> dict:
     """Prepare the participant's 3D view for the current step; the page embeds `url` when available."""
     port = services.open_viewer(ctx, token)
     return {"available": port is not None, "url": viewer_path(token) if port is not None else None}
+
+
+@router.post("/api/v1/me/execution/replay", response_model=ParticipantState,
+             responses=error_responses(400, 401, 409, 422))
+async def replay(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None, body: StepGuard | None = None) -> dict:
+    """Show the robot's finished execution again in the 3D view (recorded motion); logged as replay_watched."""
+    expect = services.Expect() if body is None else services.Expect(body.task_index, body.step_kind, body.step_index)
+    return await run_in_threadpool(services.replay_execution, ctx, token, expect=expect, key=key)
 
 
 @router.get("/api/v1/me/robot", response_model=ActivityOut, responses=error_responses(401))

@@ -1,0 +1,128 @@
+"""Change notices (LocalNotifier and the server-sent events), the study's robot speed, the page's guidance
+(required objects, progress, the lay summary) and "watch again", through the in-process app."""
+
+from __future__ import annotations
+
+import asyncio
+import threading
+
+import pytest
+
+from tableteach.core.domain import get_domain
+from tableteach.services import TASK_FORMULAS, LocalNotifier
+from tableteach.services.guidance import lay_summary, required_objects
+from tableteach.web.viewer import _change_stream, participant_client_html
+
+from .helpers import EXP, bearer, demonstrate, make_study, to_teaching
+
+
+def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise() -> None:
+    notifier = LocalNotifier()
+
+    async def scenario() -> tuple[int, int, int]:
+        assert await notifier.wait(7, 5, timeout=0.01) == 0  # differs from seen already: at once
+        quiet = await notifier.wait(7, 0, timeout=0.05)
+        timer = threading.Timer(0.05, notifier.publish, args=(7,))
+        timer.start()
+        woken = await asyncio.wait_for(notifier.wait(7, 0, timeout=5.0), 2.0)
+        notifier.publish(8)  # another participant's change does not count for 7
+        other = await notifier.wait(7, woken, timeout=0.05)
+        return quiet, woken, other
+
+    assert asyncio.run(scenario()) == (0, 1, 1)
+    assert notifier.counter(8) == 1 and notifier.counter(9) == 0
+
+
+def test_the_event_stream_sends_the_counter_then_each_change() -> None:
+    notifier = LocalNotifier()
+
+    async def activity() -> dict:
+        return {"moving": notifier.counter(3) > 0}
+
+    async def scenario() -> list[str]:
+        stream = _change_stream(notifier, 3, activity)
+        first = await anext(stream)
+        asyncio.get_running_loop().call_later(0.05, notifier.publish, 3)
+        second = await asyncio.wait_for(anext(stream), 5.0)
+        await stream.aclose()
+        return [first, second]
+
+    first, second = asyncio.run(scenario())
+    assert first.startswith("retry: ") and 'event: change\ndata: {"n":0,"robot":{"moving":false}}\n\n' in first
+    assert second == 'event: change\ndata: {"n":1,"robot":{"moving":true}}\n\n'
+
+
+def test_every_stored_action_publishes_a_change_for_that_participant(app_client) -> None:
+    token, state = to_teaching(app_client, make_study(app_client, n_practice=0))
+    pid = state["participant_id"]
+    before = app_client.ctx.notifier.counter(pid)
+    r = app_client.post("/api/v1/me/placements", json={"object": "bowl"}, headers=bearer(token))
+    assert r.status_code == 200
+    assert app_client.ctx.notifier.counter(pid) == before + 1
+    r = app_client.post("/api/v1/me/placements", json={"object": "nonsense"}, headers=bearer(token))
+    assert r.status_code == 422 and app_client.ctx.notifier.counter(pid) == before + 1  # nothing stored: no notice
+
+
+def test_the_events_address_needs_a_known_token(app_client) -> None:
+    r = app_client.get("/p/no-such-token/events")
+    assert r.status_code == 404 and r.headers["content-type"].startswith("text/html")
+
+
+def test_state_names_required_objects_progress_and_a_lay_summary(app_client) -> None:
+    study = make_study(app_client, n_practice=0, n_demonstrations=1, n_queries=0, n_tests=0,
+                       tasks=[{"key": "task2"}])
+    token, _ = to_teaching(app_client, study)
+    state = app_client.get("/api/v1/me", headers=bearer(token)).json()
+    assert state["task"]["required"] == ["dinner_plate", "bowl"]
+    assert state["progress"]["done"] == 0 and state["progress"]["total"] == 2 and state["progress"]["minutes_left"] >= 1
+    demonstrate(app_client, token, ["dinner_plate", "bowl"])
+    state = app_client.get("/api/v1/me", headers=bearer(token)).json()
+    assert state["stage"] == "questionnaire" and state["progress"]["done"] == 1
+
+
+def test_the_lay_summary_drops_orders_about_a_forbidden_object_and_merges_chains() -> None:
+    space = get_domain("dinner").clause_space
+    task1 = lay_summary(space.clauses_of(space.mask_of_formula(TASK_FORMULAS["task1"])))
+    assert "dinner plate, then the small plate, then the bowl" in task1 and task1.count("before") == 0
+    mask = space.mask_of_formula("F(dinner_plate) & G(!small_plate) & (!small_plate U dinner_plate)")
+    text = lay_summary(space.clauses_of(mask))
+    assert text == "Place the dinner plate. Never place the small plate."
+    assert required_objects({"ground_truth": None}) == []
+
+
+def test_robot_speed_is_a_study_setting_from_1_to_3(app_client) -> None:
+    from .conftest import study_spec
+
+    r = app_client.post("/api/v1/studies", json=study_spec(["active"], robot_speed=2.5), headers=EXP)
+    assert r.status_code == 201 and r.json()["robot_speed"] == 2.5
+    for bad in (0.5, 4, "fast"):
+        r = app_client.post("/api/v1/studies", json=study_spec(["active"], robot_speed=bad), headers=EXP)
+        assert r.status_code == 422 and "robot_speed" in r.json()["detail"], bad
+
+
+def test_watch_again_needs_a_finished_execution(app_client) -> None:
+    token, _ = to_teaching(app_client, make_study(app_client, n_practice=0, n_demonstrations=1))
+    demonstrate(app_client, token, ["dinner_plate", "bowl"])
+    r = app_client.post("/api/v1/me/execution/replay", headers=bearer(token))
+    assert r.status_code == 409 and "nothing to watch again" in r.json()["detail"]
+    app_client.post("/api/v1/me/execution", headers=bearer(token))
+    r = app_client.post("/api/v1/me/execution/replay", headers=bearer(token))
+    assert r.status_code == 409 and "no 3D view" in r.json()["detail"]  # the trace robot has no recorded motion
+
+
+def test_the_participant_copy_of_the_viewer_hides_its_controls() -> None:
+    page = participant_client_html(b"<html><head><title>v</title></head><body></body></html>")
+    assert b".mantine-Paper-root" in page and page.index(b"tableteach-participant") < page.index(b"<title>")
+    with pytest.raises(ValueError, match="<head>"):
+        participant_client_html(b"<html><body></body></html>")
+
+
+def test_the_trace_robot_announces_when_a_timed_execution_finishes() -> None:
+    from tableteach.robot import TraceRobot
+
+    robot = TraceRobot("dinner", seconds_per_object=0.02)
+    told = threading.Event()
+    robot.on_change = lambda key: told.set() if key == "4/0" else None
+    robot.execute("4/0", ["dinner_plate", "bowl"])
+    assert told.wait(2.0)
+    assert robot.progress("4/0").finished
