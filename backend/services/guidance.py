@@ -16,6 +16,8 @@ OBJECTS_PER_EXECUTION = 4  # a typical robot turn places four of the five object
 THINK_SECONDS = {"practice": 30.0, "demonstration": 20.0, "query": 12.0, "test": 10.0}
 QUESTIONNAIRE_SECONDS = 120.0
 INTRO_SECONDS = 60.0  # reading one task's instructions and goal picture
+BEFORE_TASKS = ("consent", "instructions", "quiz")  # stages before the first task (no step done yet)
+ENDED = ("done", "withdrawn", "screened_out")  # nothing left to do
 
 
 def required_objects(task: dict[str, Any]) -> list[str]:
@@ -43,7 +45,7 @@ def progress(configs: list[core.SessionConfig], stage: str, task_index: int, ste
     steps: list[tuple[int, str, int]] = [(i, kind, j) for i, c in enumerate(configs)
                                          for kind, n in _step_counts(c) for j in range(n)]
     order = ("practice", "demonstration", "query", "test")
-    if stage in ("consent", "instructions"):
+    if stage in BEFORE_TASKS:
         done = 0
     elif stage == "task" and step is not None:
         here = (task_index, order.index(step["kind"]) if step["kind"] in order else len(order), step["index"])
@@ -51,14 +53,14 @@ def progress(configs: list[core.SessionConfig], stage: str, task_index: int, ste
     else:
         done = len(steps)
     left = sum(_step_seconds(kind, speed) for _, kind, _ in steps[done:])
-    if stage in ("consent", "instructions", "task"):
+    if stage in (*BEFORE_TASKS, "task"):
         intros_left = len(configs) - (task_index + 1 if stage == "task" else 0)
         left += INTRO_SECONDS * max(intros_left, 0)
-    if questionnaire and stage not in ("done", "withdrawn"):
+    if questionnaire and stage not in ENDED:
         left += QUESTIONNAIRE_SECONDS
     total = len(steps) + (1 if questionnaire else 0)
-    finished = done + (1 if stage in ("done", "withdrawn") and questionnaire else 0)
-    return {"done": finished, "total": total, "minutes_left": 0 if stage in ("done", "withdrawn")
+    finished = done + (1 if stage in ENDED and questionnaire else 0)
+    return {"done": finished, "total": total, "minutes_left": 0 if stage in ENDED
             else max(1, math.ceil(left / 60))}
 
 

@@ -126,3 +126,29 @@ def test_the_trace_robot_announces_when_a_timed_execution_finishes() -> None:
     robot.execute("4/0", ["dinner_plate", "bowl"])
     assert told.wait(2.0)
     assert robot.progress("4/0").finished
+
+
+def test_progress_follows_the_participants_own_task_order(app_client) -> None:
+    study = make_study(app_client, tasks=[{"key": "task1"}, {"key": "task2"}], task_order="balanced",
+                       n_practice=0, n_demonstrations=1, n_queries=0, n_tests=0)
+    firsts = set()
+    for _ in range(2):  # balanced: the second participant does the tasks in the other order
+        token, state = to_teaching(app_client, study)
+        firsts.add(state["task"]["index"])
+        assert state["task"]["position"] == 0
+        assert state["progress"]["done"] == 0 and state["progress"]["total"] == 3  # 2 demonstrations, questionnaire
+        state = demonstrate(app_client, token, ["dinner_plate", "bowl"])
+        assert state["task"]["position"] == 1 and state["progress"]["done"] == 1
+    assert firsts == {0, 1}
+
+
+def test_progress_at_the_quiz_and_after_being_screened_out(app_client) -> None:
+    quiz = [{"id": "who", "text": "Who places the objects?", "options": ["I do", "The robot"], "correct": 1}]
+    study = make_study(app_client, quiz=quiz, quiz_max_attempts=1, n_practice=0, n_demonstrations=1, n_queries=0,
+                       n_tests=0, tasks=[{"key": "task2"}])
+    token, state = to_teaching(app_client, study)
+    assert state["stage"] == "quiz"
+    assert state["progress"]["done"] == 0 and state["progress"]["minutes_left"] >= 1  # nothing done yet
+    state = app_client.post("/api/v1/me/quiz", json={"answers": {"who": 0}}, headers=bearer(token)).json()
+    assert state["stage"] == "screened_out" and state["progress"]["minutes_left"] == 0
+
