@@ -223,6 +223,7 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
         if timed_out(study, participant):
             mark_timed_out(s, participant)
             commit(s)
+            ctx.notifier.publish(participant.id)
             return state_view(s, participant, study)
         ts = current_task(s, participant)
         if ts is not None and sync_execution(ctx, s, participant, ts):
@@ -294,6 +295,7 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
         if earlier is None and action != "withdraw" and timed_out(study, participant):
             mark_timed_out(s, participant)
             repo.commit(s)
+            ctx.notifier.publish(participant.id)
             raise Conflict("you were away longer than this study allows, so it has ended for you",
                            state=state_view(s, participant, study))
         if earlier is not None:

@@ -152,3 +152,20 @@ def test_progress_at_the_quiz_and_after_being_screened_out(app_client) -> None:
     state = app_client.post("/api/v1/me/quiz", json={"answers": {"who": 0}}, headers=bearer(token)).json()
     assert state["stage"] == "screened_out" and state["progress"]["minutes_left"] == 0
 
+
+def test_a_timeout_publishes_a_change_so_an_open_page_shows_it(app_client) -> None:
+    from datetime import timedelta
+
+    from tableteach import services
+    from tableteach.db.tables import ParticipantRow, utcnow
+
+    study = make_study(app_client, timeout_minutes=1)
+    token, state = to_teaching(app_client, study)
+    pid = state["participant_id"]
+    with app_client.ctx.db.write() as s:
+        s.get(ParticipantRow, pid).last_activity_at = utcnow() - timedelta(minutes=5)
+        s.commit()
+    before = app_client.ctx.notifier.counter(pid)
+    assert services.expire_timeouts(app_client.ctx, study) == 1
+    assert app_client.ctx.notifier.counter(pid) == before + 1
+
