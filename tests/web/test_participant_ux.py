@@ -169,3 +169,29 @@ def test_a_timeout_publishes_a_change_so_an_open_page_shows_it(app_client) -> No
     assert services.expire_timeouts(app_client.ctx, study) == 1
     assert app_client.ctx.notifier.counter(pid) == before + 1
 
+
+def test_a_refused_resume_on_the_join_link_is_a_plain_page_that_says_what_to_do(app_client) -> None:
+    study = make_study(app_client)
+    first = app_client.get(f"/study/{study}/join?PROLIFIC_PID=R1", follow_redirects=False)
+    assert first.status_code == 303 and "tableteach_browser" in first.headers["set-cookie"]  # the cookie is set
+    token = first.headers["location"].rsplit("/", 1)[1]
+    app_client.cookies.clear()  # another browser, without the Prolific session id
+    r = app_client.get(f"/study/{study}/join?PROLIFIC_PID=R1", follow_redirects=False)
+    assert r.status_code == 409 and r.headers["content-type"].startswith("text/html")
+    body = r.text.split("<body>")[1]
+    assert "already started" in body and "same Prolific session" in body and "not open" not in body
+    assert token not in r.text and '"detail"' not in r.text and "set-cookie" not in r.headers
+    r = app_client.post(f"/api/v1/studies/{study}/join", json={"prolific_pid": "R1"})
+    assert r.status_code == 409 and r.json()["state"] is None  # the API keeps JSON
+
+
+def test_a_bad_robot_speed_in_an_edit_is_named_among_the_field_errors(app_client) -> None:
+    from .conftest import study_spec
+
+    study = app_client.post("/api/v1/studies", json=study_spec(["active"]), headers=EXP).json()["id"]
+    r = app_client.patch(f"/api/v1/studies/{study}", json={"robot_speed": 5, "n_tests": 99}, headers=EXP)
+    assert r.status_code == 422
+    assert {e["field"] for e in r.json()["errors"]} >= {"robot_speed", "n_tests"}
+    r = app_client.patch(f"/api/v1/studies/{study}", json={"robot_speed": 2}, headers=EXP)
+    assert r.status_code == 200 and r.json()["robot_speed"] == 2.0
+    assert app_client.get(f"/api/v1/studies/{study}/spec", headers=EXP).json()["robot_speed"] == 2.0
