@@ -76,61 +76,18 @@ def viewer_path(token: str) -> str:
 # the websocket address (with the participant's token), "Save Canvas", "Dev Settings" and a scene tree whose
 # eye icons hide objects, and pop-up notices cover the scene. The participant's copy of the client page
 # hides all of them: the panel and the notices are viser's only Mantine Paper and Notifications roots.
-# It also paces viser's render loop, which draws every frame whether or not anything moved. After a frame
-# that took d ms the next starts no sooner than d ms later, so the page around the view (same origin, same
-# main thread) keeps at least half of it. While nothing arrives on the websocket and the participant does
-# not touch the view for a second, it draws one frame every 5 s (every change arrives on the websocket or
-# comes from input, and either brings the full rate back within 0.1 s). A GPU draws a frame in a millisecond
-# or two and is not slowed while things move; an idle tab costs little CPU; a machine drawing in software
-# stays responsive (its panel follows the robot).
 PARTICIPANT_CLIENT_HEAD = b"""<style id="tableteach-participant">
 .mantine-Paper-root, .mantine-Notifications-root, .mantine-Modal-root, .mantine-Popover-dropdown,
 .mantine-Menu-dropdown { display: none !important; }
-</style>
-<script id="tableteach-pacing">
-(() => {
-  const IDLE_AFTER_MS = 1000, IDLE_FRAME_MS = 5000, RECHECK_MS = 100;
-  let lastActivity = performance.now();
-  const active = () => { lastActivity = performance.now(); };
-  for (const type of ["pointerdown", "pointermove", "wheel", "keydown", "touchstart", "resize", "focus",
-                      "visibilitychange"]) {
-    window.addEventListener(type, active, { capture: true, passive: true });
-  }
-  const NativeSocket = window.WebSocket;
-  window.WebSocket = class extends NativeSocket {
-    constructor(...args) {
-      super(...args);
-      this.addEventListener("message", active);
-    }
-  };
-  const nativeFrame = window.requestAnimationFrame.bind(window);
-  let freeUntil = 0, lastFrame = 0;
-  // Waiting happens in timers: asking for an animation frame makes the browser produce one, drawn or not.
-  window.requestAnimationFrame = (callback) => {
-    const attempt = () => {
-      const now = performance.now();
-      const idle = now - lastActivity > IDLE_AFTER_MS;
-      const wait = Math.max(freeUntil, idle ? lastFrame + IDLE_FRAME_MS : 0) - now;
-      if (wait > 1) { setTimeout(attempt, Math.min(wait, RECHECK_MS)); return; }
-      nativeFrame((time) => {
-        const start = performance.now();
-        lastFrame = start;
-        try { callback(time); } finally { freeUntil = performance.now() + (performance.now() - start); }
-      });
-    };
-    attempt();
-    return 0;  // a paced frame cannot be cancelled; viser's loop never cancels one
-  };
-})();
-</script>"""
+</style>"""
 
 
 def participant_client_html(raw: bytes) -> bytes:
-    """Viser's client page with the participant's style sheet and frame pacing (ValueError without a <head>)."""
+    """Viser's client page with the participant's style sheet first in its head (ValueError without a <head>)."""
     at = raw.find(b"<head>")
     if at < 0:
         raise ValueError("viser's client page has no <head>: expected the built index.html of viser 1.1")
-    at += len(b"<head>")  # first in the head: before viser's own scripts look up requestAnimationFrame
+    at += len(b"<head>")
     return raw[:at] + PARTICIPANT_CLIENT_HEAD + raw[at:]
 
 
