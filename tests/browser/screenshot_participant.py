@@ -1,4 +1,5 @@
-"""Render docs/participant.png: the participant page at 1280x800 while the robot executes a query (run as a script)."""
+"""Render docs/participant.png (1366x768) and docs/participant-phone.png (390x844): the participant page while the
+robot executes a query (run as a script; a path argument renders only the laptop picture there)."""
 
 from __future__ import annotations
 
@@ -15,7 +16,11 @@ import httpx  # noqa: E402
 from conftest import LiveServer, launch_chromium  # noqa: E402
 from tests.web.conftest import open_study, study_spec  # noqa: E402
 
-OUT = Path(__file__).resolve().parents[2] / "docs" / "participant.png"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
+OUT = DOCS / "participant.png"
+PHONE_OUT = DOCS / "participant-phone.png"
+LAPTOP = {"width": 1366, "height": 768}
+PHONE = {"width": 390, "height": 844}
 
 
 def _caption(server: LiveServer, key: str) -> str:
@@ -23,14 +28,14 @@ def _caption(server: LiveServer, key: str) -> str:
     return "" if activity is None else activity.caption
 
 
-def main(out: Path = OUT) -> None:
+def main(out: Path = OUT, viewport: dict[str, int] = LAPTOP) -> None:
     """Two demonstrations through the API, then the page starts the first query and is captured mid-motion."""
     with tempfile.TemporaryDirectory() as root:
         server = LiveServer(Path(root), robot="mujoco", robot_speed=1.0).start()
         try:
             spec = study_spec(["active"], n_practice=0, n_demonstrations=2, n_queries=3, n_tests=1)
             study_id = open_study(server.url, spec)
-            with launch_chromium({"width": 1280, "height": 800}) as context:
+            with launch_chromium(viewport) as context:
                 page = context.new_page()
                 page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=screenshot")
                 page.get_by_role("button", name="I agree, continue").click()
@@ -58,4 +63,8 @@ def main(out: Path = OUT) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else OUT)
+    if len(sys.argv) > 1:
+        main(Path(sys.argv[1]))
+    else:
+        main(OUT, LAPTOP)
+        main(PHONE_OUT, PHONE)
