@@ -53,6 +53,7 @@ from .teaching import assess_execution, finish_demonstration, place_object, star
 from .viewing import (
     claim_tab,
     current_motion,
+    next_robot_change,
     open_viewer,
     participant_uid_of,
     release_tab,
@@ -114,6 +115,7 @@ __all__ = [
     "join_study",
     "list_participants",
     "list_studies",
+    "next_robot_change",
     "open_study",
     "open_viewer",
     "participant_uid_of",

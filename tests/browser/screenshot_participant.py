@@ -1,5 +1,6 @@
 """Render docs/participant.png (1366x768) and docs/participant-phone.png (390x844): the participant page while the
-robot executes a query (run as a script; a path argument renders only the laptop picture there)."""
+robot executes a query (run as a script; a path argument renders only the laptop picture there, or the phone
+picture with a second argument `phone`)."""
 
 from __future__ import annotations
 
@@ -23,9 +24,9 @@ LAPTOP = {"width": 1366, "height": 768}
 PHONE = {"width": 390, "height": 844}
 
 
-def _caption(server: LiveServer, key: str) -> str:
-    activity = server.ctx.robot.activity(key)
-    return "" if activity is None else activity.caption
+def _caption(server: LiveServer, headers: dict[str, str]) -> str:
+    """The robot's caption as any process tells it (from the execution's stored plan and clock)."""
+    return httpx.get(f"{server.url}/api/v1/me/robot", headers=headers).json()["caption"]
 
 
 def main(out: Path = OUT, viewport: dict[str, int] = LAPTOP) -> None:
@@ -48,9 +49,8 @@ def main(out: Path = OUT, viewport: dict[str, int] = LAPTOP) -> None:
                         httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj}, headers=headers)
                     httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers)
                 page.get_by_role("button", name="Watch the robot").click()
-                key = f"{httpx.get(f'{server.url}/api/v1/me', headers=headers).json()['participant_id']}/0"
                 deadline = time.monotonic() + 60
-                while "(2 of" not in _caption(server, key):
+                while "(2 of" not in _caption(server, headers):
                     if time.monotonic() > deadline:
                         raise TimeoutError("the robot did not start its second placement within 60 s")
                     time.sleep(0.1)
@@ -64,7 +64,7 @@ def main(out: Path = OUT, viewport: dict[str, int] = LAPTOP) -> None:
 
 if __name__ == "__main__":
     if len(sys.argv) > 1:
-        main(Path(sys.argv[1]))
+        main(Path(sys.argv[1]), PHONE if sys.argv[2:] == ["phone"] else LAPTOP)
     else:
         main(OUT, LAPTOP)
         main(PHONE_OUT, PHONE)

@@ -173,3 +173,15 @@ def test_on_sqlite_the_notifier_stays_in_the_process(tmp_path: Path) -> None:
                         data_dir=tmp_path / "data")
     ctx = Context.from_settings(settings)
     assert type(ctx.notifier) is LocalNotifier
+
+
+def test_the_next_stored_action_end_is_told_from_the_database(timed_client) -> None:
+    from tableteach import services
+
+    token, _pid = _to_first_query(timed_client)
+    assert services.next_robot_change(timed_client.ctx, token) is None  # nothing under way
+    timed_client.post("/api/v1/me/execution", headers=bearer(token))
+    first = services.next_robot_change(timed_client.ctx, token)
+    assert first is not None and 0 < first <= SECONDS_PER_OBJECT
+    _wait_finished(timed_client, token, within=10)
+    assert services.next_robot_change(timed_client.ctx, token) is None
