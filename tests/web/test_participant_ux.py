@@ -195,3 +195,17 @@ def test_a_bad_robot_speed_in_an_edit_is_named_among_the_field_errors(app_client
     r = app_client.patch(f"/api/v1/studies/{study}", json={"robot_speed": 2}, headers=EXP)
     assert r.status_code == 200 and r.json()["robot_speed"] == 2.0
     assert app_client.get(f"/api/v1/studies/{study}/spec", headers=EXP).json()["robot_speed"] == 2.0
+
+
+def test_the_codebook_names_every_event_kind_the_services_log() -> None:
+    import re
+    from pathlib import Path
+
+    from tableteach.services import codebook
+
+    source = "\n".join(p.read_text() for p in Path(codebook.__file__).parent.glob("*.py"))
+    logged = set(re.findall(r'\blog\("([a-z_]+)"', source)) | set(re.findall(r'\bkind="([a-z_]+)"', source))
+    logged |= set(re.findall(r'end_participation\([^)]*stage="([a-z_]+)"', source))
+    assert {"replay_watched", "withdrawn", "screened_out", "execution_finished"} <= logged  # the scan finds them
+    levels = {k.split(" (")[0].strip() for k in codebook.MEANINGS["events"]["kind"][2].split(", ")}
+    assert logged <= levels, logged - levels
