@@ -16,6 +16,24 @@ from tableteach.web.viewer import _change_stream, participant_client_html
 from .helpers import EXP, bearer, demonstrate, make_study, to_teaching
 
 
+def _run(scenario):  # type: ignore[no-untyped-def]
+    """asyncio.run(scenario()) in a thread of its own (a browser test may leave a loop running in this one)."""
+    out: dict = {}
+
+    def target() -> None:
+        try:
+            out["value"] = asyncio.run(scenario())
+        except BaseException as exc:  # re-raised in the test's thread
+            out["error"] = exc
+
+    thread = threading.Thread(target=target)
+    thread.start()
+    thread.join(30)
+    if "error" in out:
+        raise out["error"]
+    return out["value"]
+
+
 def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise() -> None:
     notifier = LocalNotifier()
 
@@ -29,7 +47,7 @@ def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise()
         other = await notifier.wait(7, woken, timeout=0.05)
         return quiet, woken, other
 
-    assert asyncio.run(scenario()) == (0, 1, 1)
+    assert _run(scenario) == (0, 1, 1)
     assert notifier.counter(8) == 1 and notifier.counter(9) == 0
 
 
@@ -47,7 +65,7 @@ def test_the_event_stream_sends_the_counter_then_each_change() -> None:
         await stream.aclose()
         return [first, second]
 
-    first, second = asyncio.run(scenario())
+    first, second = _run(scenario)
     assert first.startswith("retry: ") and 'event: change\ndata: {"n":0,"robot":{"moving":false}}\n\n' in first
     assert second == 'event: change\ndata: {"n":1,"robot":{"moving":true}}\n\n'
 
@@ -195,3 +213,17 @@ def test_a_bad_robot_speed_in_an_edit_is_named_among_the_field_errors(app_client
     r = app_client.patch(f"/api/v1/studies/{study}", json={"robot_speed": 2}, headers=EXP)
     assert r.status_code == 200 and r.json()["robot_speed"] == 2.0
     assert app_client.get(f"/api/v1/studies/{study}/spec", headers=EXP).json()["robot_speed"] == 2.0
+
+
+def test_the_codebook_names_every_event_kind_the_services_log() -> None:
+    import re
+    from pathlib import Path
+
+    from tableteach.services import codebook
+
+    source = "\n".join(p.read_text() for p in Path(codebook.__file__).parent.glob("*.py"))
+    logged = set(re.findall(r'\blog\("([a-z_]+)"', source)) | set(re.findall(r'\bkind="([a-z_]+)"', source))
+    logged |= set(re.findall(r'end_participation\([^)]*stage="([a-z_]+)"', source))
+    assert {"replay_watched", "withdrawn", "screened_out", "execution_finished"} <= logged  # the scan finds them
+    levels = {k.split(" (")[0].strip() for k in codebook.MEANINGS["events"]["kind"][2].split(", ")}
+    assert logged <= levels, logged - levels
