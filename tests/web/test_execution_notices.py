@@ -18,6 +18,7 @@ from tableteach.web.viewer import _change_stream
 
 from .conftest import EXPERIMENTER_TOKEN
 from .helpers import bearer, demonstrate, make_study, to_teaching
+from .test_participant_ux import _run
 
 SECONDS_PER_OBJECT = 0.3
 
@@ -159,9 +160,10 @@ def test_the_event_stream_wakes_itself_at_the_next_stored_action_end() -> None:
         t0 = time.monotonic()
         second = await asyncio.wait_for(anext(stream), 2.0)
         assert time.monotonic() - t0 >= 0.05
+        await stream.aclose()
         return [first, second]
 
-    first, second = asyncio.run(scenario())
+    first, second = _run(scenario)
     assert first.startswith("retry:") and "event: change" in second
 
 
