@@ -22,6 +22,10 @@ class Conflict(TableTeachError):
     """The request clashes with the current state, e.g. out of order or a repeated id (HTTP 409)."""
 
 
+class ResumeRefused(Conflict):
+    """An external id that has joined before, without its session id or browser (HTTP 409, nothing about them)."""
+
+
 class InvalidInput(TableTeachError):
     """The request is well-formed but its values are not acceptable (HTTP 422)."""
 

@@ -68,9 +68,10 @@ class Robot(Protocol):
         """The execution under way or finished on this table, or None if the robot knows of none."""
         ...
 
-    def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
+    def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
         """Work the whole execution out now (nothing is shown) and keep its recording as `name` if it records any.
 
+        `speed` (the study's robot_speed) divides the action ends, and a recording for the browser plays at it.
         ValueError names the first object that cannot be placed. The server stores the plan in the database,
         so any app process can say how far the execution has got (tableteach.services.executions).
         """
@@ -130,6 +131,7 @@ class TraceRobot:
         self.seconds_per_object = seconds_per_object
         self._tables: dict[str, _Table] = {}
         self._lock = threading.Lock()
+        self.on_change: Callable[[str], None] | None = None  # told a table's key when a timed execution finishes
 
     def reset(self, key: str) -> Labels:
         """Clear the table; the initial labels."""
@@ -163,14 +165,21 @@ class TraceRobot:
         with self._lock:
             self._tables[key] = _Table(placed=list(events), execution=tuple(events), trace=trace,
                                        started=time.monotonic())
+        if self.seconds_per_object > 0 and self.on_change is not None:
+            timer = threading.Timer(self.seconds_per_object * len(events) + 0.01, self.on_change, args=(key,))
+            timer.daemon = True
+            timer.start()
 
-    def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
-        """The execution's trace, one action per seconds_per_object; ValueError names an object it cannot place."""
+    def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
+        """The execution's trace, one action per seconds_per_object / speed; ValueError names an object it cannot
+        place or a speed that is not positive."""
+        if speed <= 0:
+            raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.5")
         history: tuple[str, ...] = ()
         for obj in events:
             history = self.domain.step(history, obj)
         events = tuple(events)
-        ends = tuple(self.seconds_per_object * (i + 1) for i in range(len(events)))
+        ends = tuple(self.seconds_per_object / speed * (i + 1) for i in range(len(events)))
         return ExecutionPlan(events, tuple(self.domain.trace_of(events)), ends)
 
     def progress(self, key: str) -> RobotProgress | None:

@@ -68,6 +68,8 @@ export class ParticipantApi {
   finishDemonstration(guard) { return this.act("/me/demonstration/finish", guard); }
   startExecution(guard) { return this.act("/me/execution", guard); }
   assess(acceptable, guard) { return this.act("/me/assessment", { acceptable, ...guard }); }
+  /** Show the finished execution again in the 3D view (its recorded motion); the server logs it. */
+  replay(guard) { return this.act("/me/execution/replay", guard); }
   answerQuestionnaire(answers) { return this.act("/me/questionnaire", { answers }); }
 
   /** Prepare the 3D view for the current step: {available, url}. */

@@ -148,6 +148,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
       consent_text: optional(f.get("consent_text")), consent_version: optional(f.get("consent_version")),
       completion_url: optional(f.get("completion_url")), completion_code: optional(f.get("completion_code")),
       screened_out_code: optional(f.get("screened_out_code")), timeout_minutes: int("timeout_minutes"),
+      robot_speed: optional(f.get("robot_speed")) === null ? undefined : Number(f.get("robot_speed")),
       pilot: Boolean(f.get("pilot")),
     };
   };
@@ -207,9 +208,11 @@ export function studyFormView({ choices, study = null, onSaved }) {
       h("div", { class: "row" }, number("n_practice", "Practice (first task only)", 0, 20),
         number("n_demonstrations", "Demonstrations", 0, 20), number("n_queries", "Queries", 0, 20),
         number("n_tests", "Tests", 0, 20))),
-    section("Learner",
+    section("Learner and robot",
       h("div", { class: "row" }, field("Prior", select("prior", choices.priors, d.prior), "prior"),
-        field("Planning criterion", select("criterion", choices.criteria, d.criterion), "criterion"))),
+        field("Planning criterion", select("criterion", choices.criteria, d.criterion), "criterion"),
+        field("Robot motion shown faster (1-3x; recordings keep real time)", h("input", { type: "number",
+          name: "robot_speed", id: "robot_speed", min: 1, max: 3, step: 0.25, value: d.robot_speed ?? 1 }), "robot_speed"))),
     section("Comprehension quiz (after the instructions)", quiz,
       h("div", { class: "row" },
         h("button", { type: "button", class: "ghost", id: "add-quiz", onclick: () => addQuiz() }, "Add a question"),

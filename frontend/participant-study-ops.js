@@ -58,8 +58,9 @@ export function quizView(state, { onQuiz, pending }) {
     form);
 }
 
-/** The page after leaving early: why, and the way back to Prolific when the study set one. */
-export function endedView(state, { redirectSeconds }) {
+/** The page after leaving early: why, and the way back to Prolific when the study set one (counting down from
+ * `secondsLeft`, as on the done page; null: no countdown). */
+export function endedView(state, { secondsLeft }) {
   const completion = state.completion ?? {};
   const [title, text] = REASONS[completion.reason] ?? REASONS.declined_consent;
   const url = completion.redirect_url;
@@ -67,8 +68,11 @@ export function endedView(state, { redirectSeconds }) {
     heading(title),
     h("p", {}, text),
     completion.code ? h("p", {}, "Your code: ", h("span", { class: "code", id: "completion-code" }, completion.code)) : null,
-    url ? h("p", {}, `You will be taken back in ${redirectSeconds} seconds. `,
-      h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
+    url ? h("p", {}, secondsLeft === null
+      ? "You can go back to the study platform now. "
+      : h("span", { class: "countdown", id: "countdown", "aria-live": "polite" },
+        `You will be taken back in ${secondsLeft} second${secondsLeft === 1 ? "" : "s"}. `),
+    h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
       : h("p", {}, "You can close this page now."));
 }
 

@@ -4,6 +4,11 @@
 import { h, pretty } from "./dom.js";
 
 const list = (objs) => (objs.length ? objs.map(pretty).join(", ") : "nothing yet");
+/** "the bowl", "the bowl and the knife", "the bowl, the knife and the fork". */
+const theList = (objs) => {
+  const named = objs.map((o) => `the ${pretty(o)}`);
+  return named.length > 1 ? `${named.slice(0, -1).join(", ")} and ${named[named.length - 1]}` : named.join("");
+};
 const GOAL_PICTURES = { task1: "goal-task1.png", task2: "goal-task2.png" };
 const STEP_NAMES = { practice: "Practice round", demonstration: "Demonstration", query: "Question", test: "Test" };
 const LIKERT = ["Strongly disagree", "Disagree", "Neither", "Agree", "Strongly agree"];
@@ -60,6 +65,19 @@ export function taskIntroView(state, { onBegin, assetUrl }) {
       goalFigure(task, assetUrl)));
 }
 
+/** The study-wide progress line: "Step 5 of 14 · about 12 minutes left". */
+export function studyProgressText(progress) {
+  if (!progress || !progress.total) return "";
+  const left = progress.minutes_left === 1 ? "about 1 minute left" : `about ${progress.minutes_left} minutes left`;
+  return `Step ${Math.min(progress.done + 1, progress.total)} of ${progress.total} · ${left}`;
+}
+
+/** Objects the task requires that are not on the table yet (the finish button asks before ending without them). */
+export function missingRequired(state) {
+  const placed = state.demonstration?.placed || [];
+  return (state.task?.required || []).filter((o) => !placed.includes(o));
+}
+
 export function progressText(state) {
   const { task, step } = state;
   if (!task || !step) return "";
@@ -85,34 +103,42 @@ function statusLine(text, busy = false) {
   return h("p", { class: busy ? "status busy" : "status", id: "status", role: "status", "aria-live": "polite" }, text);
 }
 
-function demonstrationPanel(state, live, { onPlace, onFinish, pending }) {
+function demonstrationPanel(state, live, { onPlace, onFinish, onConfirmFinish, onCancelFinish, confirming, pending }) {
   const { step, demonstration } = state;
   const placed = demonstration.placed;
   const waiting = state.objects.filter((o) => !placed.includes(o));
   const moving = live.moving || pending;
   const practice = step.kind === "practice";
+  const missing = missingRequired(state);
   const status = moving
-    ? (live.caption ? `${live.caption}. Please wait until it has finished.` : "The robot is moving. Please wait.")
+    ? (live.caption ? `${live.caption}. Please wait until it has finished.` : "The robot is busy. Please wait.")
     : waiting.length
       ? "Click the next object in the 3D view, or finish if the table is set."
       : "All objects are on Table B. Press the finish button.";
+  const finishLabel = practice ? "Finish practice" : "Finish demonstration";
   return h("div", {},
     heading(practice ? "Practice: try it out" : "Show the robot how to set the table"),
-    h("p", {}, practice
-      ? "This round does not count. Click objects on the right-hand table and watch the robot put them on the left-hand table."
-      : "Click the objects on the right-hand table (Table A) in the order you want them on the left-hand table (Table B). The robot places each one."),
+    h("p", { class: "explain" }, practice
+      ? "This round does not count. Click objects on Table A (right) and watch the robot put them on Table B (left)."
+      : "Click the objects on Table A (right) in the order you want them on Table B (left). The robot places each one."),
     statusLine(status, moving),
     h("p", { class: "placed" }, h("strong", {}, "On Table B: "), list(placed)),
     waiting.length ? h("div", { class: "object-buttons" },
       h("p", { class: "hint" }, "Or choose with the keyboard:"),
       waiting.map((obj) => h("button", { class: "object", "data-object": obj, disabled: moving,
         onclick: () => onPlace(obj) }, pretty(obj)))) : null,
-    h("div", { class: "buttons" },
-      h("button", { class: "primary", id: "finish", disabled: moving, onclick: onFinish },
-        practice ? "Finish practice" : "Finish demonstration")));
+    confirming && !moving
+      ? h("div", { class: "confirm", id: "confirm-finish", role: "alertdialog", "aria-labelledby": "confirm-text" },
+        h("p", { id: "confirm-text" }, h("strong", {}, `This task asks for ${theList(missing)} too`),
+          `, and ${missing.length === 1 ? "it is" : "they are"} not on Table B yet. Finish anyway?`),
+        h("div", { class: "buttons" },
+          h("button", { id: "keep-going", class: "primary", onclick: onCancelFinish }, "No, keep placing"),
+          h("button", { id: "finish-anyway", onclick: onConfirmFinish }, "Yes, finish now")))
+      : h("div", { class: "buttons" },
+        h("button", { class: "primary", id: "finish", disabled: moving, onclick: onFinish }, finishLabel)));
 }
 
-function executionPanel(state, live, { onStart, onAssess, pending }) {
+function executionPanel(state, live, { onStart, onAssess, onReplay, pending }) {
   const { step, execution } = state;
   const query = step.kind === "query";
   const title = query ? "The robot has a question" : "The robot shows what it learned";
@@ -135,19 +161,24 @@ function executionPanel(state, live, { onStart, onAssess, pending }) {
   }
   const finalLabels = execution.trace?.length ? execution.trace[execution.trace.length - 1] : [];
   const missed = events.filter((o) => !finalLabels.includes(o));
+  const replaying = live.moving;
   return h("div", {},
     heading(title),
-    statusLine("The robot has finished."),
+    replaying
+      ? statusLine(live.caption ? `${live.caption}. The buttons work again when it has finished.` : "The robot is busy.", true)
+      : statusLine("The robot has finished."),
     h("p", { class: "placed" }, h("strong", {}, "It placed, in this order: "), list(events)),
     missed.length ? h("p", { class: "placed" }, h("strong", {}, "Not in place at the end: "), list(missed)) : null,
     h("p", { class: "question" }, query
       ? "Is this an acceptable way to set the table for this task?"
       : "Did the robot do the task correctly?"),
     h("div", { class: "buttons" },
-      h("button", { class: "primary good", id: "acceptable", disabled: pending, onclick: () => onAssess(true) },
-        query ? "Acceptable" : "Yes, correct"),
-      h("button", { class: "primary bad", id: "unacceptable", disabled: pending, onclick: () => onAssess(false) },
-        query ? "Unacceptable" : "No, not correct")));
+      h("button", { class: "primary good", id: "acceptable", disabled: pending || replaying,
+        onclick: () => onAssess(true) }, query ? "Acceptable" : "Yes, correct"),
+      h("button", { class: "primary bad", id: "unacceptable", disabled: pending || replaying,
+        onclick: () => onAssess(false) }, query ? "Unacceptable" : "No, not correct")),
+    live.view ? h("div", { class: "buttons" },
+      h("button", { id: "watch-again", disabled: pending || replaying, onclick: onReplay }, "Watch it again")) : null);
 }
 
 function likertItem(item, index) {
@@ -196,16 +227,21 @@ export function questionnaireView(state, { onSubmit, pending }) {
     form);
 }
 
-export function doneView(state, { redirectSeconds }) {
+/** The last page: the completion code, what the robot learned in plain words, and the way back (counting down). */
+export function doneView(state, { secondsLeft }) {
   const { code, redirect_url: url, learned } = state.completion;
   return h("section", { class: "card narrow" },
     heading("Thank you!"),
     h("p", {}, "You have finished the study. Your completion code is:"),
     h("p", { class: "code", id: "completion-code" }, code),
-    learned?.length ? h("div", {}, h("p", {}, "What the robot now believes the task is:"),
-      h("ul", {}, learned.map((t) => h("li", {}, `Task ${t.task_index + 1}: ${t.map_description}.`)))) : null,
-    url ? h("p", {}, `You will be taken back in ${redirectSeconds} seconds. `,
-      h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
+    learned?.length ? h("div", { class: "summary" }, h("p", {}, "What the robot learned from you:"),
+      h("ul", {}, learned.map((t) => h("li", {}, h("strong", {}, `Task ${t.task_index + 1}: `),
+        t.summary || `${t.map_description}.`)))) : null,
+    url ? h("p", {}, secondsLeft === null
+      ? "You can go back to the study platform now. "
+      : h("span", { class: "countdown", id: "countdown", "aria-live": "polite" },
+        `You will be taken back in ${secondsLeft} second${secondsLeft === 1 ? "" : "s"}. `),
+    h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
       : h("p", {}, "You can close this page now."));
 }
 

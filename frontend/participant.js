@@ -1,13 +1,15 @@
-// The participant page: holds the one-tab lease, polls the server's state (GET /api/v1/me is the
-// truth, so a reload or a lost connection resumes the same step), embeds the 3D view and renders
-// each stage with participant-views.js. See docs/frontend.md.
+// The participant page: holds the one-tab lease, follows the server's state (GET /api/v1/me is the
+// truth, so a reload or a lost connection resumes the same step) as soon as the server's change events
+// say it changed, polling as a fallback, embeds the 3D view and renders each stage with
+// participant-views.js. See docs/frontend.md.
 
 import { ApiError, ParticipantApi, assetUrl, randomId, tokenFromLocation } from "./api.js";
 import { h } from "./dom.js";
 import * as views from "./participant-views.js";
 import * as ops from "./participant-study-ops.js";
 
-const TICK_MS = 1000;
+const TICK_MS = 1000; // polling while the change events are not connected
+const TICK_WITH_EVENTS_MS = 5000; // with them: only the lease heartbeat and a safety net
 const HEARTBEAT_MS = 5000;
 const VIEWER_STALL_MS = 8000; // no 3D view connected for this long while one is shown: reload it
 const REDIRECT_SECONDS = 8;
@@ -23,6 +25,9 @@ const el = {
   note: document.getElementById("viewer-note"),
   banner: document.getElementById("banner"),
   top: document.getElementById("top-progress"),
+  progress: document.getElementById("study-progress"),
+  progressBar: document.getElementById("study-progress-bar"),
+  progressText: document.getElementById("study-progress-text"),
 };
 
 let state = null;
@@ -34,6 +39,11 @@ let signature = "";
 let screenKey = "";
 let viewer = { stepKey: null, taskIndex: null, url: null, available: null, noWatcherSince: null, busy: false };
 let redirectTimer = null;
+let confirming = false; // the participant pressed finish with required objects missing: ask first
+let events = null; // the EventSource of the server's change notices
+let eventsOpen = false;
+let refreshing = null; // the refresh under way; a change notice meanwhile asks for one more
+let refreshAgain = false;
 
 function showBanner(text) {
   el.banner.textContent = text;
@@ -96,7 +106,23 @@ const handlers = {
     render(true);
   },
   onPlace: (obj) => act(() => api.place(obj, guard())),
-  onFinish: () => act(() => api.finishDemonstration(guard())),
+  onFinish: () => {
+    if (views.missingRequired(state).length) {
+      confirming = true;
+      render(true);
+      document.getElementById("keep-going")?.focus();
+      return;
+    }
+    act(() => api.finishDemonstration(guard()));
+  },
+  onConfirmFinish: () => { confirming = false; act(() => api.finishDemonstration(guard())); },
+  onCancelFinish: () => { confirming = false; render(true); document.getElementById("finish")?.focus(); },
+  onReplay: () => act(async () => {
+    const next = await api.replay(guard());
+    // The browser plays the recorded motion again: the answer buttons wait for it (the change event confirms it).
+    live = { ...live, moving: true, caption: "Showing the robot's attempt again" };
+    return next;
+  }),
   onStartExecution: () => act(() => api.startExecution(guard())),
   onAssess: (acceptable) => act(() => api.assess(acceptable, guard())),
   onSubmit: (answers) => act(() => api.answerQuestionnaire(answers)),
@@ -118,27 +144,47 @@ function showScreen(node) {
   closeViewer();
 }
 
+function renderProgress() {
+  const progress = state.progress;
+  const show = Boolean(progress?.total) && state.stage !== "consent" && !finished();
+  el.progress.hidden = !show;
+  if (!show) return;
+  el.progressBar.max = progress.total;
+  el.progressBar.value = progress.done;
+  el.progressText.textContent = views.studyProgressText(progress);
+}
+
+/** Ask before the tab is closed or left with Back while the study is under way. */
+function warnBeforeLeaving(event) {
+  if (!state || !["instructions", "quiz", "task", "questionnaire"].includes(state.stage)) return;
+  event.preventDefault();
+  event.returnValue = "";
+}
+
 function render(force = false) {
   if (blocked) return;
   if (!state) return;
   const intro = state.stage === "task" && !introAcknowledged();
   const sig = JSON.stringify([state.stage, state.task, state.step, state.demonstration, state.execution,
-    state.completion?.code, state.quiz, live.moving, live.caption, live.view, pending, intro]);
+    state.completion?.code, state.quiz, state.progress, live.moving, live.caption, live.view, pending, intro,
+    confirming]);
   if (sig === signature && !force) return;
   signature = sig;
   const key = JSON.stringify([state.stage, state.task?.index, state.step, state.execution?.status, intro]);
   const moved = key !== screenKey;
   screenKey = key;
+  if (moved) confirming = false;
   el.top.textContent = state.stage === "task" ? state.task.name : "";
-  const withPending = { ...handlers, pending };
+  renderProgress();
+  document.body.classList.toggle("in-task", state.stage === "task" && !intro);
+  const withPending = { ...handlers, pending, confirming };
   switch (state.stage) {
     case "consent": showScreen(views.consentView(state, withPending)); break;
     case "instructions": showScreen(views.instructionsView(state, withPending)); break;
     case "questionnaire": showScreen(views.questionnaireView(state, withPending)); break;
     case "quiz": showScreen(ops.quizView(state, withPending)); break;
-    case "withdrawn": case "screened_out":
-      showScreen(ops.endedView(state, { redirectSeconds: REDIRECT_SECONDS })); scheduleRedirect(); break;
-    case "done": showScreen(views.doneView(state, { redirectSeconds: REDIRECT_SECONDS })); scheduleRedirect(); break;
+    case "withdrawn": case "screened_out": leaveScreen((secondsLeft) => ops.endedView(state, { secondsLeft })); break;
+    case "done": leaveScreen((secondsLeft) => views.doneView(state, { secondsLeft })); break;
     case "task":
       if (intro) { showScreen(views.taskIntroView(state, withPending)); break; }
       renderTask(withPending, moved);
@@ -175,7 +221,9 @@ function closeViewer() {
 
 /** Ask the server to prepare the 3D view for this step; (re)load the frame when the task changes. */
 async function syncViewer() {
-  const stepKey = JSON.stringify([state.task.index, state.step?.kind, state.step?.index, state.execution?.status]);
+  // "Watch it again" counts in the key: the server then gives the player a new address, which plays it again.
+  const stepKey = JSON.stringify([state.task.index, state.step?.kind, state.step?.index, state.execution?.status,
+    state.execution?.replays]);
   if (viewer.busy || stepKey === viewer.stepKey) return;
   viewer.busy = true;
   try {
@@ -207,15 +255,9 @@ function loadFrame() {
   el.frame.src = viewer.url;
 }
 
+// The viewer page the server sends already hides viser's control panel and pop-up notices.
 el.frame.addEventListener("load", () => {
-  if (!viewer.url) return;
-  el.note.hidden = true;
-  // Same origin: hide viser's pop-up notices (e.g. about software rendering); they cover the scene.
-  try {
-    const style = el.frame.contentDocument.createElement("style");
-    style.textContent = ".mantine-Notifications-root { display: none !important; }";
-    el.frame.contentDocument.head.append(style);
-  } catch { /* not loaded from this origin: nothing to hide */ }
+  if (viewer.url) el.note.hidden = true;
 });
 
 function watchViewer() {
@@ -231,18 +273,68 @@ function watchViewer() {
   }
 }
 
-function scheduleRedirect() {
+/** The last screen (finished, or left early): `view(secondsLeft)` builds it; with a redirect address it counts
+ * down once per second, then goes there. */
+function leaveScreen(view) {
   const url = state.completion?.redirect_url;
+  let left = REDIRECT_SECONDS;
+  events?.close();
+  showScreen(view(url ? left : null));
   if (!url || redirectTimer) return;
-  redirectTimer = setTimeout(() => window.location.assign(url), REDIRECT_SECONDS * 1000);
+  redirectTimer = setInterval(() => {
+    left -= 1;
+    const counter = document.getElementById("countdown");
+    if (counter) counter.textContent = `You will be taken back in ${left} second${left === 1 ? "" : "s"}. `;
+    if (left <= 0) {
+      clearInterval(redirectTimer);
+      window.location.assign(url);
+    }
+  }, 1000);
 }
 
 async function refresh() {
-  const inTask = state?.stage === "task";
-  const [next, robot] = await Promise.all([api.state(), inTask ? api.robot() : Promise.resolve(null)]);
-  showBanner(el.banner.textContent.startsWith("The connection") ? "" : el.banner.textContent);
-  setState(next, robot);
-  watchViewer();
+  if (refreshing) {
+    refreshAgain = true; // a change arrived while reading: read once more afterwards
+    return refreshing;
+  }
+  refreshing = (async () => {
+    do {
+      refreshAgain = false;
+      const inTask = state?.stage === "task";
+      const [next, robot] = await Promise.all([api.state(), inTask ? api.robot() : Promise.resolve(null)]);
+      showBanner(el.banner.textContent.startsWith("The connection") ? "" : el.banner.textContent);
+      // The robot's activity is only read during a task; entering one reads it at once.
+      const enteredTask = !inTask && next.stage === "task";
+      setState(next, robot);
+      if (enteredTask) refreshAgain = true;
+      watchViewer();
+    } while (refreshAgain);
+  })();
+  try {
+    await refreshing;
+  } finally {
+    refreshing = null;
+  }
+}
+
+/** Follow the server's change notices (server-sent events on this page's own address); polling stays as a fallback. */
+function listen() {
+  if (events || typeof EventSource === "undefined") return;
+  events = new EventSource(`${window.location.pathname.replace(/\/$/, "")}/events`);
+  events.addEventListener("open", () => { eventsOpen = true; });
+  events.addEventListener("error", () => { eventsOpen = false; }); // EventSource reconnects by itself
+  events.addEventListener("change", (event) => {
+    if (blocked) return;
+    // The event carries the robot's activity: show "busy" at once, then read the state.
+    let robot = null;
+    try { robot = JSON.parse(event.data).robot; } catch { /* an older server: read everything */ }
+    if (robot && state?.stage === "task") setState(null, robot);
+    refresh().catch((error) => { if (error instanceof ApiError) handleError(error); else console.error(error); });
+  });
+}
+
+function finished() {
+  return Boolean(state) && ["done", "withdrawn", "screened_out"].includes(state.stage);
 }
 
 /** Hold the page's lease; false (and the "open elsewhere" screen) while another tab holds it. */
@@ -250,6 +342,7 @@ async function claim(takeover = false) {
   const answer = await api.claimTab(tabId, takeover);
   lastHeartbeat = Date.now();
   if (answer.held) {
+    listen();
     if (blocked) {
       blocked = false;
       signature = "";
@@ -261,6 +354,8 @@ async function claim(takeover = false) {
     blocked = true;
     state = null;
     el.top.textContent = "";
+    el.progress.hidden = true;
+    ops.syncWithdrawLink(null, handlers); // the tab that holds the page offers withdrawal
     showScreen(views.elsewhereView(handlers));
     document.querySelector(".focus-target")?.focus();
   }
@@ -268,6 +363,7 @@ async function claim(takeover = false) {
 }
 
 async function tick() {
+  if (finished()) return; // nothing changes any more: no lease, no polling
   try {
     if (blocked || Date.now() - lastHeartbeat > HEARTBEAT_MS) await claim();
     // Outside a task nothing changes on the server by itself, so only a task is polled.
@@ -276,14 +372,21 @@ async function tick() {
     if (error instanceof ApiError) handleError(error);
     else console.error(error);
   }
-  setTimeout(tick, TICK_MS);
+  setTimeout(tick, eventsOpen ? TICK_WITH_EVENTS_MS : TICK_MS);
 }
 
-window.addEventListener("pagehide", () => api.releaseTab(tabId));
+window.addEventListener("pagehide", () => { if (!finished()) api.releaseTab(tabId); });
+window.addEventListener("beforeunload", warnBeforeLeaving);
 
 async function start() {
   ops.installStyles(assetUrl);
   try {
+    // A finished participant who opens the link again sees their completion code, in any tab.
+    state = await api.state();
+    if (finished()) {
+      render(true);
+      return;
+    }
     if (await claim()) await refresh();
   } catch (error) {
     if (error instanceof ApiError) handleError(error);

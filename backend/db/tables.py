@@ -6,7 +6,8 @@ import secrets
 from datetime import datetime, timezone
 from typing import Any
 
-from sqlalchemy import JSON, false, Boolean, DateTime, ForeignKey, Integer, MetaData, String, Text, UniqueConstraint
+from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Integer, MetaData, String, Text, UniqueConstraint,
+                        false, text)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 # Deterministic constraint names so that migrations (batch mode on SQLite) can refer to them.
@@ -64,6 +65,7 @@ class StudyRow(Base):
     quiz: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list, server_default="[]")
     quiz_max_attempts: Mapped[int] = mapped_column(Integer, default=2, server_default="2")
     timeout_minutes: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    robot_speed: Mapped[float] = mapped_column(Float, default=1.0, server_default=text("1.0"))  # playback rate 1-3
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)
 

@@ -21,6 +21,7 @@ from .exports import (
 )
 from .codebook import CODEBOOK_COLUMNS, codebook_rows, export_files
 from .lifecycle import erase_participant, erasure_log, expire_timeouts, reset_pilot, withdraw
+from .notify import LocalNotifier
 from .monitoring import belief_summary, list_participants
 from .participants import answer_questionnaire, answer_quiz, finish_instructions, give_consent, join_study
 from .state import STAGES, Expect, delete_recordings, participant_state
@@ -49,7 +50,16 @@ from .studies import (
     update_study,
 )
 from .teaching import assess_execution, finish_demonstration, place_object, start_execution
-from .viewing import claim_tab, current_motion, open_viewer, participant_uid_of, release_tab, robot_activity
+from .viewing import (
+    claim_tab,
+    current_motion,
+    next_robot_change,
+    open_viewer,
+    participant_uid_of,
+    release_tab,
+    replay_execution,
+    robot_activity,
+)
 
 __all__ = [
     "CODEBOOK_COLUMNS",
@@ -77,6 +87,7 @@ __all__ = [
     "EXPORT_COLUMNS",
     "Expect",
     "ITEM_KINDS",
+    "LocalNotifier",
     "PARTICIPANT_COLUMNS",
     "QUESTIONNAIRE_COLUMNS",
     "STAGES",
@@ -104,12 +115,14 @@ __all__ = [
     "join_study",
     "list_participants",
     "list_studies",
+    "next_robot_change",
     "open_study",
     "open_viewer",
     "participant_uid_of",
     "participant_state",
     "place_object",
     "release_tab",
+    "replay_execution",
     "robot_activity",
     "seed_demo_study",
     "start_execution",

@@ -63,8 +63,9 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
     "events": {
         "seq": ("integer", "the event's number in the participant's log, from 1", ""),
         "kind": ("category", "what happened", "joined, consent, instructions_read, quiz, task_started, place, "
-                 "demonstration, execution_started, execution_finished, assessment, task_finished, questionnaire, "
-                 "completed, withdrawn, screened_out"),
+                 "demonstration, execution_started, execution_finished, replay_watched (the participant watched "
+                 "the robot's finished execution again), assessment, task_finished, questionnaire, completed, "
+                 "withdrawn, screened_out"),
         "object": ("category", "the object placed (place events)", "dinner_plate, small_plate, bowl, knife, fork"),
         "labels": ("json", "the objects on the table after a placement", "JSON list"),
         "robot_events": ("json", "the objects the robot placed, in order", "JSON list"),

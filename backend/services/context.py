@@ -14,6 +14,7 @@ from ..db import repository as repo
 from ..db.engine import Database
 from ..errors import Conflict
 from ..robot import Robot, TraceRobot
+from .notify import LocalNotifier, participant_of_key
 from .planning import Planner
 
 
@@ -65,13 +66,28 @@ class Context:
     settings: Settings
     tabs: TabLeases = field(default_factory=TabLeases)
     planner: Planner = field(default_factory=Planner)
+    notifier: LocalNotifier = field(default_factory=LocalNotifier)
+
+    def __post_init__(self) -> None:
+        # A robot that reports its own changes (motion starts, next action, stops) tells the participant's page.
+        if hasattr(self.robot, "on_change"):
+            self.robot.on_change = self._robot_changed  # type: ignore[attr-defined]
+
+    def _robot_changed(self, key: str) -> None:
+        participant_id = participant_of_key(key)
+        if participant_id is not None:
+            self.notifier.publish(participant_id)
 
     @staticmethod
     def from_settings(settings: Settings, robot: Robot | None = None) -> "Context":
-        """Open the database; the robot is the one given (the app composes it) or else the trace robot."""
+        """Open the database and its notifier; the robot is the one given (the app composes it) or else the trace
+        robot."""
+        from ..db.pg_notify import make_notifier  # PostgreSQL: notices reach every app process
+
         if robot is None:
             robot = TraceRobot("dinner", settings.robot_seconds_per_object)
-        return Context(Database(settings.database_url, busy_seconds=settings.database_busy_seconds), robot, settings)
+        return Context(Database(settings.database_url, busy_seconds=settings.database_busy_seconds), robot, settings,
+                       notifier=make_notifier(settings.database_url))
 
 
 def aware(value: datetime | None) -> datetime | None:

@@ -134,4 +134,6 @@ def expire_timeouts(ctx: Context, study_id: str) -> int:
             repo.commit(s)
         except repo.WriteConflict:
             return 0  # one of them acted meanwhile; the next look tries again
+        for p in stale:
+            ctx.notifier.publish(p.id)  # an open page shows that the study has ended for them
         return len(stale)

@@ -1,5 +1,9 @@
-"""Wake a participant's open page when their state changes: a counter per participant that threads bump and
-asyncio handlers wait on. In one process; tableteach.db.pg_notify carries it across processes."""
+"""Change notices per participant: a counter bumped after every change of their state or robot, awaited by the page.
+
+LocalNotifier works inside one process (threads publish, asyncio tasks wait); tableteach.db.pg_notify's
+PgNotifier carries the same notices between processes (PostgreSQL LISTEN/NOTIFY). The server-sent events
+at /p/{token}/events wait on the one in use (Context.notifier).
+"""
 
 from __future__ import annotations
 
@@ -8,45 +12,58 @@ import threading
 
 
 class LocalNotifier:
-    """Per-participant change counters; publish() from any thread, wait() from the event loop."""
+    """In-process notices: publish() from any thread, wait() from any event loop."""
 
     def __init__(self) -> None:
-        self._counts: dict[int, int] = {}
-        self._waiters: dict[int, set[tuple[asyncio.AbstractEventLoop, asyncio.Event]]] = {}
         self._lock = threading.Lock()
+        self._counters: dict[int, int] = {}
+        self._waiters: dict[int, set[tuple[asyncio.AbstractEventLoop, asyncio.Event]]] = {}
+
+    def counter(self, participant_id: int) -> int:
+        """How many changes of this participant were published so far (0 if none)."""
+        with self._lock:
+            return self._counters.get(participant_id, 0)
+
+    count = counter  # the name the cross-process notifier's tests use
 
     def publish(self, participant_id: int) -> None:
-        """The participant's state changed: wake everyone waiting for them (thread-safe)."""
+        """The participant's state or robot changed: wake everyone waiting for them (thread-safe)."""
         with self._lock:
-            self._counts[participant_id] = self._counts.get(participant_id, 0) + 1
+            self._counters[participant_id] = self._counters.get(participant_id, 0) + 1
             waiters = list(self._waiters.get(participant_id, ()))
         for loop, event in waiters:
             try:
                 loop.call_soon_threadsafe(event.set)
             except RuntimeError:
-                pass  # that loop has closed; its waiter is gone
-
-    def count(self, participant_id: int) -> int:
-        """How many changes were published for the participant so far."""
-        with self._lock:
-            return self._counts.get(participant_id, 0)
+                pass  # that loop has closed: its waiter is gone
 
     async def wait(self, participant_id: int, seen: int, timeout: float) -> int:
-        """Return the participant's change count once it differs from `seen`, or after `timeout` seconds."""
-        waiter = (asyncio.get_running_loop(), asyncio.Event())
+        """The participant's change counter as soon as it differs from `seen`, or after `timeout` seconds."""
+        event = asyncio.Event()
+        entry = (asyncio.get_running_loop(), event)
         with self._lock:
-            if self._counts.get(participant_id, 0) != seen:
-                return self._counts.get(participant_id, 0)
-            self._waiters.setdefault(participant_id, set()).add(waiter)
+            current = self._counters.get(participant_id, 0)
+            if current != seen:
+                return current
+            self._waiters.setdefault(participant_id, set()).add(entry)
         try:
-            await asyncio.wait_for(waiter[1].wait(), timeout)
+            await asyncio.wait_for(event.wait(), timeout)
         except asyncio.TimeoutError:
             pass
         finally:
             with self._lock:
                 waiting = self._waiters.get(participant_id)
                 if waiting is not None:
-                    waiting.discard(waiter)
+                    waiting.discard(entry)
                     if not waiting:
                         del self._waiters[participant_id]
-        return self.count(participant_id)
+        return self.counter(participant_id)
+
+    def close(self) -> None:
+        """Nothing to release in one process (PgNotifier closes its connections)."""
+
+
+def participant_of_key(key: str) -> int | None:
+    """The participant id of a robot table key "<participant id>/<task index>", or None for another form."""
+    head, _, _ = key.partition("/")
+    return int(head) if head.isdigit() else None

@@ -13,7 +13,7 @@ from typing import Any
 from ..config import Settings
 from ..db import repository as repo
 from ..db.tables import StudyRow, utcnow
-from ..errors import Conflict, InvalidInput, NotFound
+from ..errors import Conflict, InvalidInput, NotFound, ResumeRefused
 from .context import Context, app_version, commit
 from .state import Action, act, end_participation, require_stage, state_view, task_sequence
 from .studies import ITEM_KINDS
@@ -73,7 +73,8 @@ def join_study(
 
     An external id alone is not enough to resume (ids are shown on the dashboard and exported): the request
     must carry the external session id the participant first came with, or come from the same browser
-    (browser_secret, from the cookie set at join). Otherwise Conflict, which says nothing about that participant."""
+    (browser_secret, from the cookie set at join). Otherwise ResumeRefused (a Conflict), which says nothing
+    about that participant."""
     with ctx.db.write() as s:
         study = repo.get_study(s, study_id=study_id, for_update=True)
         if study is None:
@@ -82,7 +83,7 @@ def join_study(
             existing = repo.find_participant_by_external_id(s, study_id=study_id, prolific_pid=prolific_pid)
             if existing is not None:
                 if not _may_resume(existing, external_session_id, browser_secret):
-                    raise Conflict(RESUME_REFUSED)
+                    raise ResumeRefused(RESUME_REFUSED)
                 return state_view(s, existing, study), False
         if study.status != "open":
             raise Conflict(f"study {study_id!r} is {study.status}; participants can join only while it is open")

@@ -18,6 +18,7 @@ from ..sim import recordings
 from ..sim.recordings import RecordingId
 from . import executions
 from .context import Context, app_version, aware, iso
+from .guidance import lay_summary, progress, required_objects
 from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
@@ -59,6 +60,13 @@ def mark_timed_out(s: Any, participant: ParticipantRow) -> None:
 
 def robot_key(participant: ParticipantRow, task_index: int) -> str:
     return f"{participant.id}/{task_index}"
+
+
+def apply_speed(ctx: Context, key: str, study: StudyRow) -> None:
+    """Tell a robot that shows motion the study's playback speed for this table (others ignore it)."""
+    set_speed = getattr(ctx.robot, "set_speed", None)
+    if set_speed is not None:
+        set_speed(key, float(study.robot_speed or 1.0))
 
 
 def save_recording(ctx: Context, participant: ParticipantRow, task_index: int, kind: str, index: int) -> None:
@@ -110,7 +118,7 @@ def sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskSe
             return False  # still being worked out in the background
         rid = RecordingId(participant.uid, ts.task_index, execution["kind"], execution["index"])
         execution = {**execution, "plan": executions.plan(ctx, robot_key(participant, ts.task_index), rid,
-                                                           execution["events"]),
+                                                           execution["events"], executions.speed_of(execution)),
                      "started_at": utcnow().isoformat()}
         ts.execution, changed = execution, True
     progress = executions.progress(execution)
@@ -146,7 +154,7 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         sequence = task_sequence(study, participant)
         out["task"] = {"index": participant.task_index, "total": len(study.tasks), "name": task["name"],
                        "instructions": task["instructions"], "key": task["key"],
-                       "position": sequence.index(participant.task_index)}
+                       "position": sequence.index(participant.task_index), "required": required_objects(task)}
         if ts is not None:
             kind, index, total = position_of(ts.state_json)
             out["step"] = {"kind": kind, "index": index, "total": total}
@@ -158,7 +166,8 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
                 ex = ts.execution
                 if ex is not None and (ex["kind"], ex["index"]) == (kind, index):
                     out["execution"] = {"kind": ex["kind"], "index": ex["index"], "status": ex["status"],
-                                        "events": ex["events"], "trace": ex.get("trace")}
+                                        "events": ex["events"], "trace": ex.get("trace"),
+                                        "replays": int(ex.get("replays", 0))}
                 else:
                     out["execution"] = {"kind": kind, "index": index, "status": "not_started",
                                         "events": None, "trace": None}
@@ -180,6 +189,12 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
                              "redirect_url": _completion_url(study, code), "learned": []}
     elif participant.stage == "withdrawn":
         out["completion"] = {"code": None, "reason": participant.end_reason, "redirect_url": None, "learned": []}
+    # Progress follows the participant's own task order (counterbalancing): position, not the task's index.
+    sequence = task_sequence(study, participant)
+    configs = [session_config(study, participant, i) for i in sequence]
+    position = sequence.index(participant.task_index) if participant.task_index in sequence else 0
+    out["progress"] = progress(configs, participant.stage, position, out["step"],
+                               speed=study.robot_speed, questionnaire=bool(study.questionnaire))
     return out
 
 
@@ -190,7 +205,8 @@ def _learned(s: Any, participant: ParticipantRow) -> list[dict[str, Any]]:
     for ts in repo.task_sessions_of(s, participant_id=participant.id):
         b = core.belief(session_of(ts.state_json))
         out.append({"task_index": ts.task_index, "map_formula": space.text_of(b.map_mask),
-                    "map_description": space.describe(b.map_mask)})
+                    "map_description": space.describe(b.map_mask),
+                    "summary": lay_summary(space.clauses_of(b.map_mask))})
     return out
 
 
@@ -223,10 +239,14 @@ def participant_state(ctx: Context, token: str) -> dict[str, Any]:
             if timed_out(study, participant):
                 mark_timed_out(s, participant)
                 repo.commit(s)
+                ctx.notifier.publish(participant.id)
                 return state_view(s, participant, study)
             ts = current_task(s, participant)
             if ts is not None and sync_execution(ctx, s, participant, ts):
+                stored = ts.execution
                 repo.commit(s)
+                ctx.notifier.publish(participant.id)
+                executions.announce(ctx, participant.id, stored)  # one worked out here: its action ends
             return state_view(s, participant, study)
     except repo.WriteConflict:
         # Another request (the page's poll, another process) recorded the same finish first: show what it stored.
@@ -241,7 +261,7 @@ def _resume_working_out(ctx: Context, participant: ParticipantRow, task_index: i
     try:
         executions.work_out_in_background(ctx, robot_key(participant, task_index), participant.id,
                                           RecordingId(participant.uid, task_index, ex["kind"], ex["index"]),
-                                          list(ex["events"]))
+                                          list(ex["events"]), executions.speed_of(ex))
     except Exception:  # noqa: BLE001 - the overdue path in sync_execution works it out in the end
         log.warning("could not resume working out an execution", exc_info=True)
 
@@ -310,6 +330,7 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
         if earlier is None and action != "withdraw" and timed_out(study, participant):
             mark_timed_out(s, participant)
             repo.commit(s)
+            ctx.notifier.publish(participant.id)
             raise Conflict("you were away longer than this study allows, so it has ended for you",
                            state=state_view(s, participant, study))
         if earlier is not None:
@@ -322,13 +343,14 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
             action = Action(ctx, s, participant, study, key, digest)
             run(action)
             repo.commit(s)
+            ctx.notifier.publish(participant.id)
             for then in action.after_commit:
                 then()
             if action.plan_ahead is not None:
                 ctx.planner.plan_ahead(action.plan_ahead)
                 ts_index = participant.task_index
                 executions.prepare_ahead(ctx, robot_key(participant, ts_index), participant.uid, ts_index,
-                                         action.plan_ahead)
+                                         action.plan_ahead, float(study.robot_speed or 1.0))
             return state_view(s, participant, study)
         except Conflict as exc:
             conflict = exc

@@ -57,6 +57,9 @@ LIVE_FIELDS = ("name", "pilot", "completion_code", "screened_out_code", "complet
 DEMO_STUDY_ID = "demo"
 
 
+ROBOT_SPEEDS = (1.0, 3.0)  # a study shows the robot's motion 1x to 3x faster than recorded (recordings keep real time)
+
+
 DEFAULT_CONSENT = (
     "You will teach a simulated robot to set a table by showing it and by judging its attempts. "
     "Your actions and answers are recorded without your name. You may stop at any time with the "
@@ -218,6 +221,11 @@ def _study_values(spec: dict[str, Any], problems: _Problems | None = None) -> di
               (("n_practice", 1), ("n_demonstrations", 2), ("n_queries", 3), ("n_tests", 3))}
     for name, value in counts.items():
         _whole(problems, name, value, 0, 20)
+    speed = spec.get("robot_speed", 1.0)
+    low, high = ROBOT_SPEEDS
+    if isinstance(speed, bool) or not isinstance(speed, (int, float)) or not low <= speed <= high:
+        problems.add("robot_speed", f"must be a number from {low:g} to {high:g} (how much faster than real time "
+                     f"the robot's motion is shown), got {speed!r}")
     url = spec.get("completion_url")
     if url is not None and not str(url).startswith(("https://", "http://")):
         problems.add("completion_url", f"must start with https:// or http://, got {url!r}")
@@ -255,6 +263,7 @@ def _study_values(spec: dict[str, Any], problems: _Problems | None = None) -> di
         "quiz": _check_quiz(spec.get("quiz") or [], problems),
         "quiz_max_attempts": attempts,
         "timeout_minutes": timeout,
+        "robot_speed": float(speed) if isinstance(speed, (int, float)) else 1.0,
         "status": "draft",
     }
     problems.raise_if_any()
@@ -282,6 +291,7 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "completion_url": study.completion_url, "completion_code": study.completion_code,
         "screened_out_code": study.screened_out_code, "task_order": study.task_order, "quiz": study.quiz,
         "quiz_max_attempts": study.quiz_max_attempts, "timeout_minutes": study.timeout_minutes,
+        "robot_speed": study.robot_speed,
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }
 

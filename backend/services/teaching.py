@@ -123,12 +123,16 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
         events = list(step.robot_execution.events)
         rid = RecordingId(a.participant.uid, ts.task_index, step.kind, step.index)
         robot = robot_key(a.participant, ts.task_index)
+        speed = float(a.study.robot_speed or 1.0)  # the recorded motion plays at the study's speed
         ts.execution = {"kind": step.kind, "index": step.index, "events": events, "status": "running",
                         "trace": None, "p_acceptable": step.p_acceptable,
-                        **executions.begin(a.ctx, robot, rid, events)}
+                        **executions.begin(a.ctx, robot, rid, events, speed)}
+        pid = a.participant.id
         if ts.execution["plan"] is None:
-            pid = a.participant.id
-            a.after_commit.append(lambda: executions.work_out_in_background(a.ctx, robot, pid, rid, events))
+            a.after_commit.append(lambda: executions.work_out_in_background(a.ctx, robot, pid, rid, events, speed))
+        else:
+            started = ts.execution
+            a.after_commit.append(lambda: executions.announce(a.ctx, pid, started))
         a.log("execution_started", {"events": events, "p_acceptable": step.p_acceptable},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
         sync_execution(a.ctx, a.s, a.participant, ts)

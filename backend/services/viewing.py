@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from typing import Any
+from typing import Any, NamedTuple
 
 from ..errors import Conflict, InvalidInput
 from ..robot import ViewingRobot
@@ -12,7 +12,8 @@ from ..sim.recordings import RecordingId
 from . import executions
 from .context import Context
 from .planning import position_of
-from .state import Expect, current_task, participant_and_study, robot_key
+from .state import Action, Expect, act, apply_speed, current_task, participant_and_study, robot_key
+from .teaching import _teaching as teaching_step  # the same step check as the other teaching actions
 from .teaching import place_object
 
 log = logging.getLogger(__name__)
@@ -38,6 +39,7 @@ def open_viewer(ctx: Context, token: str) -> int | None:
             return None
         kind, index, _ = position_of(ts.state_json)
         key = robot_key(participant, ts.task_index)
+        apply_speed(ctx, key, study_row)
         on_click: Callable[[str], None] | None = None
         if kind in ("practice", "demonstration"):
             if ts.demo_trace and robot.placed(key) != tuple(ts.demo_placed):
@@ -59,7 +61,14 @@ def participant_uid_of(ctx: Context, token: str) -> str:
         return participant.uid
 
 
-def current_motion(ctx: Context, token: str) -> RecordingId | None:
+class Motion(NamedTuple):
+    """The recording the browser plays for the current step, and how often it was asked to play it again."""
+
+    recording: RecordingId
+    replays: int
+
+
+def current_motion(ctx: Context, token: str) -> Motion | None:
     """The recording the browser plays for the current step: its robot execution, once started and recorded."""
     with ctx.db.read() as s:
         participant, _study = participant_and_study(s, token)
@@ -71,7 +80,7 @@ def current_motion(ctx: Context, token: str) -> RecordingId | None:
         recorded = ex.get("recorded") or (ex.get("plan") or {}).get("viewable")
         if (ex["kind"], ex["index"]) != (kind, index) or not recorded:
             return None
-        return RecordingId(participant.uid, ts.task_index, kind, index)
+        return Motion(RecordingId(participant.uid, ts.task_index, kind, index), int(ex.get("replays", 0)))
 
 
 def _place_clicked(ctx: Context, token: str, obj: str, expect: Expect) -> None:
@@ -80,6 +89,31 @@ def _place_clicked(ctx: Context, token: str, obj: str, expect: Expect) -> None:
         place_object(ctx, token, obj=obj, expect=expect)
     except (Conflict, InvalidInput) as exc:
         log.info("click on %s not placed: %s", obj, exc.message)
+
+
+def replay_execution(ctx: Context, token: str, *, expect: Expect, key: str | None = None) -> dict[str, Any]:
+    """Play the robot's finished execution again in the browser (its recorded .viser file, no re-planning) and log
+    that it was watched; every process says the robot is busy until the replay has played (robot_activity)."""
+    replayed: dict[str, Any] = {}
+
+    def run(a: Action) -> None:
+        ts, _state, step = teaching_step(a, expect, ("query", "test"))
+        ex = ts.execution
+        if ex is None or (ex["kind"], ex["index"]) != (step.kind, step.index) or ex["status"] != "finished":
+            raise Conflict(f"there is nothing to watch again yet: {step.kind} {step.index + 1} has not finished; "
+                           "watch again once the robot has finished")
+        if not (ex.get("plan") or {}).get("viewable"):
+            raise Conflict("this robot has no 3D view, so there is no recorded motion to watch again; "
+                           "answer from the objects listed")
+        if executions.replaying(ex):
+            raise Conflict("the robot's attempt is being shown again already; wait until it has finished")
+        ts.execution = replayed["ex"] = executions.replay(ex)
+        replayed["pid"] = a.participant.id
+        a.log("replay_watched", {"events": ex["events"], "replay": ts.execution["replays"]},
+              task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+        a.after_commit.append(lambda: executions.announce(ctx, replayed["pid"], replayed["ex"]))
+
+    return act(ctx, token, "replay", dict(expect.__dict__), key, run)
 
 
 def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
@@ -98,7 +132,17 @@ def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
         # An execution's progress is in the database, whichever process started it.
         progress = executions.progress(ex)
         out.update(moving=not progress.finished, caption=progress.caption)
+    elif ex is not None and executions.replaying(ex):
+        out.update(moving=True, caption=executions.REPLAY_CAPTION)
     return out
+
+
+def next_robot_change(ctx: Context, token: str) -> float | None:
+    """Seconds until the participant's execution reaches its next stored action end (or its replay ends), if any."""
+    with ctx.db.read() as s:
+        participant, _study = participant_and_study(s, token)
+        ts = current_task(s, participant)
+        return executions.next_change_in(None if ts is None else ts.execution)
 
 
 def claim_tab(ctx: Context, token: str, tab_id: str, *, takeover: bool = False) -> dict[str, Any]:

@@ -65,6 +65,7 @@ class _Table:
         self.player: threading.Thread | None = None
         self.stop = threading.Event()
         self.last_used = time.monotonic()
+        self.speed = 1.0  # the study's playback rate, on top of the robot's own
 
     @property
     def moving(self) -> bool:
@@ -89,9 +90,10 @@ class MujocoRobot:
         self._reaper: threading.Thread | None = None
         self._closing = threading.Event()
         self._studio: Studio | None = None
-        self._plans: dict[tuple[str, tuple[str, ...], str], ExecutionPlan] = {}  # the last few, see plan_execution
-        self._preparing: dict[tuple[str, tuple[str, ...], str], Future[ExecutionPlan]] = {}
+        self._plans: dict[tuple[str, tuple[str, ...], str, float], ExecutionPlan] = {}  # the last few: plan_execution
+        self._preparing: dict[tuple[str, tuple[str, ...], str, float], Future[ExecutionPlan]] = {}
         self._prep_pool: ThreadPoolExecutor | None = None
+        self.on_change: Callable[[str], None] | None = None  # told a table's key when its activity changes
 
     # -- Robot -------------------------------------------------------------------------------------
     def reset(self, key: str) -> Labels:
@@ -126,6 +128,7 @@ class MujocoRobot:
                     self._show_still(table)
             self._start_player(table)
             self._refresh(table)
+        self._changed(table)
         return labels
 
     def placed(self, key: str) -> tuple[str, ...] | None:
@@ -150,10 +153,11 @@ class MujocoRobot:
                 table.execution = events
             self._refresh(table)
             self._start_player(table)
+        self._changed(table)
 
-    def prepare(self, key: str, events: Sequence[str], name: str) -> Future[ExecutionPlan]:
+    def prepare(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> Future[ExecutionPlan]:
         """plan_execution in the background: the plan already made, the one under way, or a new one."""
-        memo = (key, tuple(events), name)
+        memo = (key, tuple(events), name, speed)
         with self._lock:
             known = self._plans.get(memo)
             if known is not None and viser_path(self.data_dir, RecordingId.parse(name)).exists():
@@ -166,17 +170,20 @@ class MujocoRobot:
                 raise RuntimeError("the robot is shutting down: expected no new executions")
             if self._prep_pool is None:
                 self._prep_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robot-prepare")
-            future = self._preparing[memo] = self._prep_pool.submit(self._work_out, key, tuple(events), name)
+            future = self._preparing[memo] = self._prep_pool.submit(self._work_out, key, tuple(events), name, speed)
             return future
 
-    def plan_execution(self, key: str, events: Sequence[str], name: str) -> ExecutionPlan:
+    def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
         """Simulate the whole execution on a fresh copy of the table and save it (.npz, .json and a .viser file).
 
-        Nothing is shown live: the browser plays the .viser file. An execution already worked out (or being
-        worked out, see prepare) is not simulated again.
+        Nothing is shown live: the browser plays the .viser file, at `speed` (the study's robot_speed) on top of
+        the robot's own; the plan's action ends are divided alike, and the saved recording keeps real time. An
+        execution already worked out (or being worked out, see prepare) is not simulated again.
         """
+        if speed <= 0:
+            raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.5")
         events = tuple(events)
-        memo = (key, events, name)
+        memo = (key, events, name, speed)
         with self._lock:
             known, preparing = self._plans.get(memo), self._preparing.get(memo)
         if known is not None and viser_path(self.data_dir, RecordingId.parse(name)).exists():
@@ -186,19 +193,19 @@ class MujocoRobot:
                 return preparing.result()
             except Exception:  # noqa: BLE001 - worked out again below, where the error reaches the caller
                 log.warning("preparing execution %s failed; working it out again", name, exc_info=True)
-        return self._work_out(key, events, name)
+        return self._work_out(key, events, name, speed)
 
-    def _work_out(self, key: str, events: tuple[str, ...], name: str) -> ExecutionPlan:
+    def _work_out(self, key: str, events: tuple[str, ...], name: str, speed: float) -> ExecutionPlan:
         rid = RecordingId.parse(name)
-        memo = (key, events, name)
+        memo = (key, events, name, speed)
         try:
-            return self._simulate(key, events, rid, memo)
+            return self._simulate(key, events, rid, memo, self.speed * speed)
         finally:
             with self._lock:
                 self._preparing.pop(memo, None)
 
     def _simulate(self, key: str, events: tuple[str, ...], rid: RecordingId,
-                  memo: tuple[str, tuple[str, ...], str]) -> ExecutionPlan:
+                  memo: tuple[str, tuple[str, ...], str, float], rate: float) -> ExecutionPlan:
         world = MujocoWorld(table_seed(key))
         try:
             check_sequence(events, world.objects)  # refuse the whole request before anything moves
@@ -214,8 +221,8 @@ class MujocoRobot:
             captions = [(t0, f"The robot is placing the {_pretty(obj)} ({i + 1} of {len(events)})")
                         for i, (t0, obj) in enumerate(zip(starts, events, strict=True))]
             write_atomically(viser_path(self.data_dir, rid), self._studio_of(world).render(
-                recording, captions, speed=self.speed))
-            worked = ExecutionPlan(events, tuple(world.trace), tuple((end - start) / self.speed for end in ends),
+                recording, captions, speed=rate))
+            worked = ExecutionPlan(events, tuple(world.trace), tuple((end - start) / rate for end in ends),
                                    viewable=True)
         finally:
             world.close()
@@ -276,6 +283,12 @@ class MujocoRobot:
         if table is not None:
             self._shut(table)
 
+    def set_speed(self, key: str, speed: float) -> None:
+        """Show this table's motions `speed` times faster (the study's setting; recordings keep real time)."""
+        if speed <= 0:
+            raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.5")
+        self._table(key).speed = speed
+
     # -- ViewingRobot --------------------------------------------------------------------------------
     def open_view(self, key: str, on_click: Callable[[str], None] | None) -> int:
         """The table's viser port (started on first use); waiting objects report clicks to on_click."""
@@ -298,7 +311,8 @@ class MujocoRobot:
         table = self._get(key)
         if table is None:
             return None
-        return RobotActivity(table.moving, table.caption if table.moving else "", table.watchers)
+        busy = table.moving or table.clicking
+        return RobotActivity(busy, table.caption if busy else "", table.watchers)
 
     def scene(self, key: str) -> tuple[MujocoWorld, SceneView | None] | None:
         """The table's world and view, for tests and tools that look (never move anything through these)."""
@@ -414,11 +428,12 @@ class MujocoRobot:
                         break
                     caption, segment, is_action = motion
                     table.caption = caption
+                self._changed(table)
                 view = table.view
                 if view is not None:
                     view.set_caption(caption)
                     if view.client_count > 0:
-                        play(segment, view, speed=self.speed, stop=table.stop)
+                        play(segment, view, speed=self.speed * table.speed, stop=table.stop)
                 if table.stop.is_set():
                     break
                 with table.lock:
@@ -440,6 +455,17 @@ class MujocoRobot:
             if table.view is not None:
                 table.view.set_caption("")
             self._refresh(table)
+            self._changed(table)
+
+    def _changed(self, table: _Table) -> None:
+        """Tell the server that this table's activity changed (it pushes the news to the participant's page)."""
+        callback = self.on_change
+        if callback is None:
+            return
+        try:
+            callback(table.key)
+        except Exception:
+            log.exception("change notice for table %s failed", table.key)
 
     def _refresh(self, table: _Table) -> None:
         """Make exactly the objects a participant may click now clickable."""
@@ -462,7 +488,10 @@ class MujocoRobot:
             if callback is None or table.clicking:
                 return
             table.clicking = True
+            if table.player is None:
+                table.caption = f"The robot is placing the {_pretty(obj)}"
         self._refresh(table)
+        self._changed(table)
         try:
             callback(obj)
         except Exception:
@@ -470,7 +499,10 @@ class MujocoRobot:
         finally:
             with table.lock:
                 table.clicking = False
+                if table.player is None:
+                    table.caption = ""
             self._refresh(table)
+            self._changed(table)
 
     def _ensure_reaper(self) -> None:
         with self._lock:

@@ -14,6 +14,7 @@ from .world import OBJECTS
 
 POSE_EPSILON = 1e-4  # pose change (m or quaternion units) below which a body is not re-sent
 HIDDEN_GROUP = 3  # geoms in this group and above are collision-only (see scene.xml)
+TABLE_LABELS = {"table_a": "Table A", "table_b": "Table B"}  # as the participant's instructions name them
 
 
 def capsule_mesh(
@@ -70,6 +71,7 @@ class SceneView:
         self._caption = self.server.scene.add_label(
             "/caption", "", position=(0.7, 0.0, 0.06), anchor="top-center", font_screen_scale=1.3, visible=False
         )
+        self._add_table_labels(model, data)
         self._clickable: set[str] = set()
         for obj in clickable:
             self.set_clickable(obj, True)
@@ -144,6 +146,24 @@ class SceneView:
                 opacity=opacity, side="double", **pose,
             )
         raise ValueError(f"geom {g} has type {kind}: expected plane, box, sphere, ellipsoid, cylinder, capsule or mesh")
+
+    def _add_table_labels(self, model: mujoco.MjModel, data: mujoco.MjData) -> None:
+        """"Table A" and "Table B" at the front edge of each table top, the words the instructions use."""
+        for body, text in TABLE_LABELS.items():
+            try:
+                b = model.body(body).id
+            except KeyError:
+                continue  # a scene without that table
+            geoms = np.flatnonzero(model.geom_bodyid == b)
+            tops = [g for g in geoms if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_BOX]
+            if not tops:
+                continue
+            g = max(tops, key=lambda k: model.geom_pos[k][2])
+            x, y, _ = data.xpos[b] + model.geom_pos[g]
+            top = data.xpos[b][2] + model.geom_pos[g][2] + model.geom_size[g][2]
+            front = x + model.geom_size[g][0]  # the camera looks from +x
+            self.server.scene.add_label(f"/labels/{body}", text, position=(float(front) + 0.02, float(y), float(top)),
+                                        anchor="top-center", font_screen_scale=1.1)
 
     # -- interaction ------------------------------------------------------------------------------
     def set_clickable(self, obj: str, clickable: bool) -> None:

@@ -6,11 +6,12 @@ import logging
 
 from fastapi import FastAPI, Request
 from fastapi.exceptions import RequestValidationError
-from fastapi.responses import JSONResponse
+from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..core.session import ProtocolError
-from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, TableTeachError, TryLater
+from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, TableTeachError, TryLater
+from .pages import error_page, is_page
 
 log = logging.getLogger(__name__)
 
@@ -38,35 +39,44 @@ def _validation_message(exc: RequestValidationError) -> str:
     return "; ".join(parts) or "invalid request"
 
 
+def _for(request: Request, answer: JSONResponse, *, resume_refused: bool = False) -> Response:
+    """Participant-facing pages (/study/..., /p/...) answer a plain-words HTML page instead of JSON."""
+    if not is_page(request.url.path):
+        return answer
+    own = {k: v for k, v in answer.headers.items() if k not in ("content-type", "content-length")}
+    return error_page(answer.status_code, own, resume_refused=resume_refused)
+
+
 def install(app: FastAPI) -> None:
     """Register the exception handlers."""
 
     @app.exception_handler(TableTeachError)
-    async def _service_error(_request: Request, exc: TableTeachError) -> JSONResponse:
+    async def _service_error(request: Request, exc: TableTeachError) -> Response:
         if isinstance(exc, TryLater):
-            return _answer(exc.status, exc.message, exc.state, {"Retry-After": str(exc.retry_after)})
+            return _for(request, _answer(exc.status, exc.message, exc.state, {"Retry-After": str(exc.retry_after)}))
         status = next((code for cls, code in STATUS.items() if isinstance(exc, cls)), 400)
         headers = {"WWW-Authenticate": "Bearer"} if status == 401 else None
-        return _answer(status, exc.message, exc.state, headers, getattr(exc, "errors", None))
+        return _for(request, _answer(status, exc.message, exc.state, headers, getattr(exc, "errors", None)),
+                    resume_refused=isinstance(exc, ResumeRefused))
 
     @app.exception_handler(ProtocolError)
-    async def _protocol_error(_request: Request, exc: ProtocolError) -> JSONResponse:
-        return _answer(409, str(exc))
+    async def _protocol_error(request: Request, exc: ProtocolError) -> Response:
+        return _for(request, _answer(409, str(exc)))
 
     @app.exception_handler(RequestValidationError)
-    async def _invalid(_request: Request, exc: RequestValidationError) -> JSONResponse:
-        return _answer(422, _validation_message(exc), errors=_field_errors(exc))
+    async def _invalid(request: Request, exc: RequestValidationError) -> Response:
+        return _for(request, _answer(422, _validation_message(exc), errors=_field_errors(exc)))
 
     @app.exception_handler(StarletteHTTPException)
-    async def _http(_request: Request, exc: StarletteHTTPException) -> JSONResponse:
-        return _answer(exc.status_code, str(exc.detail), None, getattr(exc, "headers", None))
+    async def _http(request: Request, exc: StarletteHTTPException) -> Response:
+        return _for(request, _answer(exc.status_code, str(exc.detail), None, getattr(exc, "headers", None)))
 
     @app.exception_handler(OverflowError)
-    async def _too_large(request: Request, exc: OverflowError) -> JSONResponse:
+    async def _too_large(request: Request, exc: OverflowError) -> Response:
         log.warning("number out of range on %s %s: %s", request.method, request.url.path, exc)
-        return _answer(422, "a number in the request is too large: expected ids and counts below 2^31")
+        return _for(request, _answer(422, "a number in the request is too large: expected ids and counts below 2^31"))
 
     @app.exception_handler(Exception)
-    async def _unexpected(request: Request, exc: Exception) -> JSONResponse:
+    async def _unexpected(request: Request, exc: Exception) -> Response:
         log.exception("unexpected error on %s %s", request.method, request.url.path)
-        return _answer(500, "internal error; it has been logged")
+        return _for(request, _answer(500, "internal error; it has been logged"))

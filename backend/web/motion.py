@@ -27,9 +27,11 @@ def motion_path(token: str, rid: RecordingId) -> str:
     return f"/p/{token}/motion/task-{rid.task_index}/{rid.step_kind}-{rid.step_index}.viser"
 
 
-def playback_url(token: str, rid: RecordingId) -> str:
-    """The viewer page playing a recorded step instead of connecting to a live view."""
-    return f"/p/{token}/viewer/?playbackPath={quote(motion_path(token, rid), safe='')}"
+def playback_url(token: str, rid: RecordingId, replays: int = 0) -> str:
+    """The viewer page playing a recorded step instead of connecting to a live view; each "Watch it again" gives
+    a new address (`replay=n`), so the page reloads the player, which plays the (cached) file from the start."""
+    again = f"&replay={replays}" if replays else ""
+    return f"/p/{token}/viewer/?playbackPath={quote(motion_path(token, rid), safe='')}{again}"
 
 
 @router.get("/p/{token}/motion/task-{task_index}/{step_kind}-{step_index}.viser", include_in_schema=False)

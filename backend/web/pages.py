@@ -35,12 +35,57 @@ PAGE_HEADERS = {
     "Content-Security-Policy": "default-src 'self'; img-src 'self' data:; frame-src 'self'; object-src 'none'; "
                                "base-uri 'none'; frame-ancestors 'none'",
 }
-PAGE = """<!doctype html><html lang="en"><head><meta charset="utf-8"><title>{title}</title></head>
-<body><main><h1>{title}</h1>{body}</main></body></html>"""
+PAGE = """<!doctype html><html lang="en"><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1"><meta name="referrer" content="no-referrer">
+<title>{title}</title><link rel="stylesheet" href="/participant/assets/style.css"></head>
+<body><header class="topbar"><span class="brand">Teach a robot to set the table</span></header>
+<main><div class="screen"><section class="card narrow" id="message"><h1>{title}</h1>{body}</section></div></main>
+</body></html>"""
+CONTACT = ("<p>If you came from a recruitment platform such as Prolific, go back there and contact the researchers "
+           "through its messages; they can help you.</p>")
+# What a participant reads instead of an error answer on the pages they can reach: (title, what to do).
+PAGE_ERRORS = {
+    400: ("This link did not work", "<p>The link could not be used as it is. Please open it again exactly as "
+          "you were given it.</p>"),
+    401: ("Link not found", "<p>No participant has this link. Check that the whole link was copied, or open "
+          "the study again from the platform that sent you.</p>"),
+    404: ("Link not found", "<p>This link does not lead to a study on this server. Check that the whole link "
+          "was copied, or open the study again from the platform that sent you.</p>"),
+    409: ("This study is not open", "<p>The study is not taking participants at the moment: it may not have "
+          "started yet, or it may be full or finished. Nothing about you has been recorded.</p>"),
+    422: ("This link is incomplete", "<p>Part of the link is missing or damaged. Please open it again exactly "
+          "as you were given it.</p>"),
+}
+# A 409 on the join link when the PROLIFIC_PID joined before from another browser and Prolific session.
+RESUME_REFUSED = ("You have already started this study", "<p>This participant id has already started this study "
+                  "in another browser. To continue, open the study link again in the browser you started in, or "
+                  "from the same Prolific session.</p>")
+SERVER_ERROR = ("Something went wrong on our side", "<p>The study server could not answer just now. Please "
+                "wait a minute and reload the page; your progress so far is saved.</p>")
+PAGE_PREFIXES = ("/study/", "/p/")
+
+
+def is_page(path: str) -> bool:
+    """True for addresses a participant opens in the browser (they get HTML); the API answers JSON."""
+    return path.startswith(PAGE_PREFIXES)
+
+
+def error_page(status: int, headers: dict[str, str] | None = None, *, resume_refused: bool = False) -> HTMLResponse:
+    """A plain-words HTML page for an error on a participant-facing address: what happened, what to do.
+
+    `headers` are the error's own (e.g. Allow on a 405); `resume_refused` for a 409 that refused to resume."""
+    title, body = (RESUME_REFUSED if resume_refused
+                   else PAGE_ERRORS.get(status, SERVER_ERROR if status >= 500 else PAGE_ERRORS[400]))
+    return HTMLResponse(PAGE.format(title=title, body=body + CONTACT), status_code=status,
+                        headers={**(headers or {}), "Referrer-Policy": "no-referrer", "Cache-Control": "no-store"})
 
 
 @router.get("/study/{study_id}/join", response_class=RedirectResponse, status_code=303,
-            responses={303: {"description": "to the participant's page /p/{token}"}, **error_responses(404, 409)})
+            responses={303: {"description": "to the participant's page /p/{token}"},
+                       404: {"description": "no such study (an HTML page)", "content": {"text/html": {}}},
+                       409: {"description": "the study is not open, or this PROLIFIC_PID joined before from another "
+                             "browser and session (an HTML page)", "content": {"text/html": {}}},
+                       422: {"description": "a damaged link (an HTML page)", "content": {"text/html": {}}}})
 def join_link(study_id: str, ctx: ContextDep, request: Request, PROLIFIC_PID: ExternalId = None,  # noqa: N803
               STUDY_ID: ExternalId = None, SESSION_ID: ExternalId = None) -> RedirectResponse:  # noqa: N803
     """The link given to participants: creates the participant (or finds, by PROLIFIC_PID with the same
@@ -62,8 +107,7 @@ def participant_page(token: str, ctx: ContextDep) -> Response:
     try:
         services.participant_state(ctx, token)
     except NotAuthenticated:
-        body = "<p>No participant has this link; check that it was copied completely.</p>"
-        return HTMLResponse(PAGE.format(title="Link not found", body=body), status_code=404)
+        return error_page(404)
     return FileResponse(FRONTEND / "participant.html", media_type="text/html; charset=utf-8", headers=PAGE_HEADERS)
 
 

@@ -75,6 +75,7 @@ class ParticipantState(BaseModel):
         description="at the end: code, redirect_url (the study's completion URL with the code), reason for leaving "
                     "early (declined_consent, withdrew, comprehension, timeout) and the debriefing")
     quiz: dict[str, Any] | None = Field(None, description="at the quiz stage: items, failed_attempts, attempts_left")
+    progress: dict[str, Any] | None = Field(None, description="{done, total, minutes_left}: steps of the whole study")
     replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
 
 
@@ -134,6 +135,8 @@ class StudyIn(Strict):
     quiz: list[QuizItemIn] = Field(default_factory=list, max_length=20)
     quiz_max_attempts: int = Field(2, ge=1, le=10)
     timeout_minutes: int | None = Field(None, ge=1, le=1440)
+    robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
+                               "than real time (recordings keep real time)")
 
 
 STUDY_FIELDS = tuple(StudyIn.model_fields)
@@ -163,6 +166,7 @@ class StudyOut(BaseModel):
     quiz: list[dict[str, Any]]
     quiz_max_attempts: int
     timeout_minutes: int | None
+    robot_speed: float = 1.0
     created_at: str | None
     updated_at: str | None
 

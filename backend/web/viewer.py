@@ -1,5 +1,6 @@
 """The participant page's live links: the same-origin 3D view (viser's client page plus a websocket proxy
-to the participant's own viser server on 127.0.0.1), the robot's activity, and the one-tab lease.
+to the participant's own viser server on 127.0.0.1), the robot's activity, change notices as server-sent
+events, and the one-tab lease.
 
 This module and tableteach.sim are the only code that knows viser's ports. The proxy checks the
 participant's token and forwards viser's version subprotocol (Sec-WebSocket-Protocol); without it
@@ -10,27 +11,34 @@ from __future__ import annotations
 
 import asyncio
 import gzip
+import json
 import logging
+import time
+from collections.abc import AsyncIterator, Awaitable, Callable
 from functools import lru_cache
 from typing import Any
 
 import websockets
 from fastapi import APIRouter, Request, WebSocket
-from fastapi.responses import HTMLResponse, Response
+from fastapi.responses import HTMLResponse, Response, StreamingResponse
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
 
 from .. import services
 from ..errors import NotAuthenticated
-from .deps import ContextDep, TokenDep
+from .deps import ContextDep, IdempotencyKey, TokenDep
 from .motion import playback_url
-from .schemas import error_responses
+from .schemas import ParticipantState, StepGuard, error_responses
 
 log = logging.getLogger(__name__)
 router = APIRouter(tags=["participant page"])
 TabId = Field(min_length=8, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
 CLOSE_POLICY = 1008  # websocket close code: the request broke a rule (bad token, no view now)
+EVENTS_KEEPALIVE_SECONDS = 15.0  # a comment line this often keeps proxies from closing a quiet stream
+EVENTS_STREAM_SECONDS = 300.0  # then the stream ends and the browser reconnects (a restart never waits on it)
+EVENTS_RETRY_MS = 1000
+STORED_CLOCK_GRACE_SECONDS = 0.3  # a timer's notice of an action end normally comes first; this is the back-up
 
 
 class TabIn(BaseModel):
@@ -66,11 +74,30 @@ def viewer_path(token: str) -> str:
     return f"/p/{token}/viewer/"
 
 
+# viser 1.1 cannot hide its control panel (main_panel.minimize() still opens it on a narrow screen). It shows
+# the websocket address (with the participant's token), "Save Canvas", "Dev Settings" and a scene tree whose
+# eye icons hide objects, and pop-up notices cover the scene. The participant's copy of the client page
+# hides all of them: the panel and the notices are viser's only Mantine Paper and Notifications roots.
+PARTICIPANT_CLIENT_HEAD = b"""<style id="tableteach-participant">
+.mantine-Paper-root, .mantine-Notifications-root, .mantine-Modal-root, .mantine-Popover-dropdown,
+.mantine-Menu-dropdown { display: none !important; }
+</style>"""
+
+
+def participant_client_html(raw: bytes) -> bytes:
+    """Viser's client page with the participant's style sheet first in its head (ValueError without a <head>)."""
+    at = raw.find(b"<head>")
+    if at < 0:
+        raise ValueError("viser's client page has no <head>: expected the built index.html of viser 1.1")
+    at += len(b"<head>")
+    return raw[:at] + PARTICIPANT_CLIENT_HEAD + raw[at:]
+
+
 @lru_cache(maxsize=1)
 def _client_bytes() -> tuple[bytes, bytes]:
     from ..sim.viewer_client import client_html
 
-    raw = client_html()
+    raw = participant_client_html(client_html())
     return raw, gzip.compress(raw, compresslevel=6)
 
 
@@ -184,14 +211,89 @@ async def _pump(browser: WebSocket, upstream: Any) -> None:
             pass  # the browser has gone already
 
 
+@router.get("/p/{token}/events", include_in_schema=False)
+async def change_events(token: str, ctx: ContextDep) -> Response:
+    """Server-sent events: `change` whenever the participant's state or robot changes.
+
+    Each event's data is {"n": change counter, "robot": GET /me/robot's answer}, so the page can show the
+    robot busy at once; it then reads GET /api/v1/me as usual. EventSource cannot send an Authorization
+    header, so the token comes from the page's own path (the page's address carries it already).
+    """
+    try:
+        state = await run_in_threadpool(services.participant_state, ctx, token)
+    except NotAuthenticated:
+        return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
+    pid = int(state["participant_id"])
+    headers = {"Cache-Control": "no-store", "X-Accel-Buffering": "no", "Referrer-Policy": "no-referrer"}
+    def activity() -> dict | None:
+        try:
+            return services.robot_activity(ctx, token)
+        except Exception:  # the activity is a head start for the page; it reads the state next anyway
+            log.exception("robot activity for a change event failed")
+            return None
+
+    def next_change() -> float | None:
+        try:
+            return services.next_robot_change(ctx, token)
+        except Exception:  # the stored clock is a back-up for the notices; they keep coming without it
+            log.exception("the next stored action end for a change event failed")
+            return None
+
+    stream = _change_stream(ctx.notifier, pid, lambda: run_in_threadpool(activity),
+                            lambda: run_in_threadpool(next_change))
+    return StreamingResponse(stream, media_type="text/event-stream", headers=headers)
+
+
+async def _no_change() -> float | None:
+    return None
+
+
+async def _change_stream(notifier: services.LocalNotifier, pid: int,
+                         activity: Callable[[], Awaitable[dict | None]],
+                         next_change: Callable[[], Awaitable[float | None]] = _no_change) -> AsyncIterator[str]:
+    """A change event at once, then on every change; keep-alive comments between; ends after a while.
+
+    The execution's stored plan says when its next action ends: if no notice has come by then (the process
+    whose timer announces it may have gone), the stream sends a change event of its own."""
+    seen = notifier.counter(pid)
+    yield f"retry: {EVENTS_RETRY_MS}\n" + _event(seen, await activity())
+    ends = time.monotonic() + EVENTS_STREAM_SECONDS
+    due = await next_change()
+    due_at = None if due is None else time.monotonic() + due + STORED_CLOCK_GRACE_SECONDS
+    while (left := ends - time.monotonic()) > 0:
+        wait = min(EVENTS_KEEPALIVE_SECONDS, left)
+        if due_at is not None:
+            wait = max(0.0, min(wait, due_at - time.monotonic()))
+        current = await notifier.wait(pid, seen, wait)
+        if current != seen or (due_at is not None and time.monotonic() >= due_at):
+            seen = current
+            yield _event(seen, await activity())
+            due = await next_change()
+            due_at = None if due is None else time.monotonic() + due + STORED_CLOCK_GRACE_SECONDS
+        else:
+            yield ": still here\n\n"
+
+
+def _event(counter: int, robot: dict | None) -> str:
+    return f"event: change\ndata: {json.dumps({'n': counter, 'robot': robot}, separators=(',', ':'))}\n\n"
+
+
 @router.post("/api/v1/me/view", response_model=ViewOut, responses=error_responses(401))
 def open_view(ctx: ContextDep, token: TokenDep) -> dict:
     """Prepare the participant's 3D view for the current step; the page embeds `url` when available."""
     recorded = services.current_motion(ctx, token)  # a robot execution: the browser plays its recording
     if recorded is not None:
-        return {"available": True, "url": playback_url(token, recorded)}
+        return {"available": True, "url": playback_url(token, recorded.recording, recorded.replays)}
     port = services.open_viewer(ctx, token)
     return {"available": port is not None, "url": viewer_path(token) if port is not None else None}
+
+
+@router.post("/api/v1/me/execution/replay", response_model=ParticipantState,
+             responses=error_responses(400, 401, 409, 422))
+async def replay(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None, body: StepGuard | None = None) -> dict:
+    """Show the robot's finished execution again in the 3D view (recorded motion); logged as replay_watched."""
+    expect = services.Expect() if body is None else services.Expect(body.task_index, body.step_kind, body.step_index)
+    return await run_in_threadpool(services.replay_execution, ctx, token, expect=expect, key=key)
 
 
 @router.get("/api/v1/me/robot", response_model=ActivityOut, responses=error_responses(401))

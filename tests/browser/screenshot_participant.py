@@ -1,4 +1,6 @@
-"""Render docs/participant.png: the participant page at 1280x800 while the robot executes a query (run as a script)."""
+"""Render docs/participant.png (1366x768) and docs/participant-phone.png (390x844): the participant page while the
+robot executes a query (run as a script; a path argument renders only the laptop picture there, or the phone
+picture with a second argument `phone`)."""
 
 from __future__ import annotations
 
@@ -15,22 +17,26 @@ import httpx  # noqa: E402
 from conftest import LiveServer, launch_chromium  # noqa: E402
 from tests.web.conftest import open_study, study_spec  # noqa: E402
 
-OUT = Path(__file__).resolve().parents[2] / "docs" / "participant.png"
+DOCS = Path(__file__).resolve().parents[2] / "docs"
+OUT = DOCS / "participant.png"
+PHONE_OUT = DOCS / "participant-phone.png"
+LAPTOP = {"width": 1366, "height": 768}
+PHONE = {"width": 390, "height": 844}
 
 
-def _caption(server: LiveServer, key: str) -> str:
-    activity = server.ctx.robot.activity(key)
-    return "" if activity is None else activity.caption
+def _caption(server: LiveServer, headers: dict[str, str]) -> str:
+    """The robot's caption as any process tells it (from the execution's stored plan and clock)."""
+    return httpx.get(f"{server.url}/api/v1/me/robot", headers=headers).json()["caption"]
 
 
-def main(out: Path = OUT) -> None:
+def main(out: Path = OUT, viewport: dict[str, int] = LAPTOP) -> None:
     """Two demonstrations through the API, then the page starts the first query and is captured mid-motion."""
     with tempfile.TemporaryDirectory() as root:
         server = LiveServer(Path(root), robot="mujoco", robot_speed=1.0).start()
         try:
             spec = study_spec(["active"], n_practice=0, n_demonstrations=2, n_queries=3, n_tests=1)
             study_id = open_study(server.url, spec)
-            with launch_chromium({"width": 1280, "height": 800}) as context:
+            with launch_chromium(viewport) as context:
                 page = context.new_page()
                 page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=screenshot")
                 page.get_by_role("button", name="I agree, continue").click()
@@ -43,9 +49,8 @@ def main(out: Path = OUT) -> None:
                         httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj}, headers=headers)
                     httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers)
                 page.get_by_role("button", name="Watch the robot").click()
-                key = f"{httpx.get(f'{server.url}/api/v1/me', headers=headers).json()['participant_id']}/0"
                 deadline = time.monotonic() + 60
-                while "(2 of" not in _caption(server, key):
+                while "(2 of" not in _caption(server, headers):
                     if time.monotonic() > deadline:
                         raise TimeoutError("the robot did not start its second placement within 60 s")
                     time.sleep(0.1)
@@ -58,4 +63,8 @@ def main(out: Path = OUT) -> None:
 
 
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else OUT)
+    if len(sys.argv) > 1:
+        main(Path(sys.argv[1]), PHONE if sys.argv[2:] == ["phone"] else LAPTOP)
+    else:
+        main(OUT, LAPTOP)
+        main(PHONE_OUT, PHONE)

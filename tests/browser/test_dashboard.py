@@ -209,14 +209,17 @@ def test_experimenter_creates_and_opens_a_study(server_factory: Any, browser_pag
     page.fill("[name=item_id]", "easy")
     page.fill("[name=item_text]", "Teaching was easy.")
     page.fill("#n_tests", "25")
+    page.fill("#robot_speed", "5")
     page.click("#create")
     error = page.locator("#create-message .error")
     error.wait_for()
-    assert "2 fields need a change" in error.text_content()
+    assert "3 fields need a change" in error.text_content()
     # Each refused field says why next to itself, both at once, in plain words.
     assert "spoon" in page.text_content("[data-error-for='tasks.0.ground_truth']")
     assert "0 to 20" in page.text_content("[data-error-for='n_tests']")
+    assert "1 to 3" in page.text_content("[data-error-for='robot_speed']")
     page.fill("#n_tests", "2")
+    page.fill("#robot_speed", "1.5")
     page.fill("#tasks input[name=ground_truth]", "F(bowl) & (!bowl U dinner_plate)")
     words = page.locator(".formula-words.ok")
     words.wait_for()
@@ -234,6 +237,7 @@ def test_experimenter_creates_and_opens_a_study(server_factory: Any, browser_pag
         "Made in the browser", "draft", ["active", "random"])
     assert created["tasks"][0]["key"] == "custom" and "(!bowl U dinner_plate)" in created["tasks"][0]["ground_truth"]
     assert created["tasks"][0]["name"] == "Plate before bowl" and created["n_tests"] == 2
+    assert created["robot_speed"] == 1.5
     assert created["questionnaire"] == [
         {"id": "easy", "text": "Teaching was easy.", "kind": "likert5", "required": True}]
     page.click("#open-study")

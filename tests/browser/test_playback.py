@@ -79,3 +79,16 @@ def test_the_browser_plays_the_recorded_execution_then_holds_the_final_table(bro
     still = _shot(page)
     time.sleep(2.0)
     assert _changed(still, _shot(page)) < 0.001, "the finished execution did not hold still"
+
+    # The participant's copy of the player shows no controls: no playback bar (pause, time, speed, scene tree),
+    # no control panel, no token, at a laptop's and a phone's size.
+    token = joined["state"]["token"]
+    for size in ({"width": 1366, "height": 768}, {"width": 390, "height": 844}):
+        page.set_viewport_size(size)
+        time.sleep(0.5)
+        papers = page.evaluate("() => [...document.querySelectorAll('.mantine-Paper-root')]"
+                               ".map(e => e.getClientRects().length > 0)")
+        assert papers and not any(papers), f"viser's controls show at {size}: {papers}"
+        text = page.evaluate("() => document.body.innerText")
+        assert token not in text and "Dev Settings" not in text
+        assert not page.get_by_label("Show scene tree").first.is_visible()

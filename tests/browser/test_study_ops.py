@@ -20,6 +20,9 @@ from tests.web.conftest import EXPERIMENTER_TOKEN, QUESTIONNAIRE  # noqa: E402
 
 EXP = {"Authorization": f"Bearer {EXPERIMENTER_TOKEN}"}
 VIEWPORT = {"width": 1366, "height": 768}
+# Elements with the hidden attribute that still take room on screen (style.css hides every one of them).
+HIDDEN_SHOWN = """() => [...document.querySelectorAll('[hidden]')].filter(e => e.getClientRects().length > 0)
+    .map(e => e.id || e.className || e.tagName)"""
 QUIZ = [{"id": "who", "text": "Who places the objects during a demonstration?",
          "options": ["I choose them and the robot places them", "The robot chooses by itself"], "correct": 0},
         {"id": "order", "text": "Can the order of the objects matter?", "options": ["Yes", "No"], "correct": 0}]
@@ -60,18 +63,37 @@ def test_quiz_then_withdraw_with_confirmation(live_server: Any, browser_page: An
     page.goto(f"{live_server.url}/study/{study}/join?PROLIFIC_PID=B1")
     page.wait_for_selector("button:has-text('I agree')")
     assert page.locator("#withdraw-link").is_hidden()  # nothing to withdraw from before consent
+    assert page.evaluate(HIDDEN_SHOWN) == []
     consent(page)
     page.wait_for_selector("form.quiz")
     assert page.locator("#withdraw-link").is_visible()
+    assert page.evaluate(HIDDEN_SHOWN) == [] and page.locator("#task").is_hidden()
+    assert page.locator("#study-progress-text").inner_text().startswith("Step 1 of ")
     page.check("input[name=quiz-who][value='1']")
     page.check("input[name=quiz-order][value='0']")
     page.click("form.quiz button[type=submit]")
     page.wait_for_selector("#quiz-retry")
     assert "last try" in page.text_content("#quiz-retry")
+    assert page.evaluate(HIDDEN_SHOWN) == []
     page.check("input[name=quiz-who][value='0']")
     page.check("input[name=quiz-order][value='0']")
     page.click("form.quiz button[type=submit]")
     page.wait_for_selector("button:has-text('Begin this task')")
+    # A tab that no longer holds the page (another took it over) offers no withdrawal; taking it back does.
+    other = page.context.new_page()
+    try:
+        other.goto(page.url)
+        other.wait_for_selector("#elsewhere")
+        assert other.locator("#withdraw-link").is_hidden()
+        other.click("#elsewhere button")
+        other.wait_for_selector("button:has-text('Begin this task')")
+        page.wait_for_selector("#elsewhere", timeout=15_000)
+        assert page.locator("#withdraw-link").is_hidden() and page.evaluate(HIDDEN_SHOWN) == []
+    finally:
+        other.close()
+    page.click("#elsewhere button")
+    page.wait_for_selector("button:has-text('Begin this task')")
+    assert page.locator("#withdraw-link").is_visible()
     # Withdraw: the confirmation can be cancelled; confirming deletes the data and says so.
     page.click("#withdraw-link")
     page.click("#withdraw-cancel")
@@ -83,7 +105,8 @@ def test_quiz_then_withdraw_with_confirmation(live_server: Any, browser_page: An
     page.click("#withdraw-confirm")
     page.wait_for_selector("#ended")
     assert "withdrawn" in page.text_content("#ended h1") and "deleted" in page.text_content("#ended")
-    assert page.locator("#withdraw-link").is_hidden()
+    assert page.locator("#withdraw-link").is_hidden() and page.locator("#study-progress").is_hidden()
+    assert page.evaluate(HIDDEN_SHOWN) == []
     events = httpx.get(f"{live_server.url}/api/v1/studies/{study}/exports/events.csv", headers=EXP).text
     assert [line.split(",")[3] for line in events.splitlines()[1:]] == ["withdrawn"]
 
@@ -96,6 +119,9 @@ def test_declining_consent_redirects_with_the_screened_out_code(live_server: Any
     page.click("button:has-text('I do not agree')")
     page.wait_for_selector("#ended #redirect")
     assert page.get_attribute("#redirect", "href") == f"{live_server.url}/healthz?cc=SCREEN7"
+    first = page.locator("#countdown").inner_text()
+    page.wait_for_timeout(1500)
+    assert page.locator("#countdown").inner_text() != first  # the countdown counts, as on the done page
     page.wait_for_url(f"{live_server.url}/healthz?cc=SCREEN7", timeout=15_000)  # taken back without a click
 
 

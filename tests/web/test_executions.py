@@ -28,16 +28,16 @@ class SlowRobot(TraceRobot):
         self.release_plans = threading.Event()
         self.prepared: list[str] = []
 
-    def prepare(self, key: str, events: Sequence[str], name: str) -> Future[ExecutionPlan]:
+    def prepare(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> Future[ExecutionPlan]:
         future: Future[ExecutionPlan] = Future()
         self.prepared.append(name)
         if self.release_plans.is_set():  # worked out ahead: done by the time the execution starts
-            future.set_result(self.plan_execution(key, events, name))
+            future.set_result(self.plan_execution(key, events, name, speed=speed))
             return future
 
         def work() -> None:
             if self.release_plans.wait(10):
-                future.set_result(self.plan_execution(key, events, name))
+                future.set_result(self.plan_execution(key, events, name, speed=speed))
             else:
                 future.set_exception(RuntimeError("the test never let the plan through"))
 

@@ -300,14 +300,14 @@ def test_a_second_database_on_the_same_data_dir_never_shows_anothers_recording(t
     class SavingTraceRobot(TraceRobot):
         """The trace robot, saving a tiny recording of each execution it works out (as the MuJoCo robot does)."""
 
-        def plan_execution(self, key: str, events: Any, name: str) -> Any:
+        def plan_execution(self, key: str, events: Any, name: str, *, speed: float = 1.0) -> Any:
             from tableteach.sim.recordings import RecordingId
 
             poses = np.zeros((2, 1, 7))
             poses[:, :, 3] = 1.0
             save_recording(data_dir, SavedRecording(RecordingId.parse(name), Recording(("bowl",), np.array([0., 1.]),
                                                                                        poses), (), (frozenset(),), ()))
-            return super().plan_execution(key, events, name)
+            return super().plan_execution(key, events, name, speed=speed)
 
     data_dir = tmp_path / "shared-data"
     with _app(tmp_path, "a.db", data_dir, SavingTraceRobot()) as first, _app(tmp_path, "b.db", data_dir) as second:

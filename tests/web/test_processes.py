@@ -3,6 +3,8 @@ process that started a robot execution loses nothing (the execution's clock is i
 
 from __future__ import annotations
 
+import json
+import threading
 import time
 from pathlib import Path
 
@@ -146,5 +148,56 @@ def test_with_the_mujoco_robot_another_process_finishes_the_execution_and_serves
         api = ParticipantClient(b.url, token=partial.token)
         assert run_teacher(b.url, study_id, ["task1"], seed=3, client=api).completion_code
     finally:
+        a.stop()
+        b.stop()
+
+
+def _read_events(url: str, into: list[tuple[float, dict]], stop: threading.Event) -> None:
+    """Collect a page's change events (arrival time, data) until told to stop."""
+    try:
+        with httpx.stream("GET", url, timeout=httpx.Timeout(5.0, read=30.0)) as response:
+            for line in response.iter_lines():
+                if line.startswith("data: "):
+                    into.append((time.monotonic(), json.loads(line[len("data: "):])))
+                if stop.is_set():
+                    return
+    except httpx.HTTPError:
+        if not stop.is_set():  # the server went away while the test still listened
+            raise
+
+
+def test_a_page_on_one_process_follows_an_execution_started_on_another(
+    postgres_url: str, tmp_path: Path  # noqa: F811 - the fixture imported above
+) -> None:
+    a, b = _server(postgres_url, tmp_path, "a"), _server(postgres_url, tmp_path, "b")
+    stop = threading.Event()
+    try:
+        study_id = open_study(a.url, study_spec(["active"]))
+        partial = run_teacher(a.url, study_id, ["task1"], seed=7, stop_after=5)
+        got: list[tuple[float, dict]] = []
+        reader = threading.Thread(target=_read_events, args=(f"{b.url}/p/{partial.token}/events", got, stop),
+                                  daemon=True)
+        reader.start()
+        deadline = time.monotonic() + 10
+        while not got:  # the stream's first event: it is listening
+            assert time.monotonic() < deadline, "the page's event stream on b never answered"
+            time.sleep(0.05)
+        started = ParticipantClient(a.url, token=partial.token).execute()
+        t0 = time.monotonic()
+        events = started["execution"]["events"]
+        captions = [f"The robot is placing the {obj.replace('_', ' ')} ({i + 1} of {len(events)})"
+                    for i, obj in enumerate(events)]
+        deadline = t0 + SECONDS_PER_OBJECT * len(events) + 5
+        while len(got) < 2 + len(events) or (got[-1][1]["robot"] or {}).get("moving") is not False:
+            assert time.monotonic() < deadline, f"b's page did not follow the execution: {got}"
+            time.sleep(0.05)
+        seen = [(at - t0, data["robot"]["caption"]) for at, data in got[1:]]
+        # The start reached b through PostgreSQL at once (b's stream had no stored action end to wake for).
+        assert seen[0][1] == captions[0] and seen[0][0] < 1.0
+        assert [c for _, c in seen if c] == captions[: len([c for _, c in seen if c])]
+        assert set(captions) <= {c for _, c in seen}  # each action in turn, then the finish
+        assert got[-1][1]["robot"]["moving"] is False
+    finally:
+        stop.set()
         a.stop()
         b.stop()

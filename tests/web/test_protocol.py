@@ -8,7 +8,7 @@ from tableteach.config import Settings
 from tableteach.db.migrate import upgrade_head
 from tableteach.web.app import create_app
 
-from .conftest import EXPERIMENTER_TOKEN
+from .conftest import EXPERIMENTER_TOKEN, study_spec
 from .helpers import EXP, bearer, demonstrate, join, make_study, to_teaching
 
 ALL = ["dinner_plate", "small_plate", "bowl", "knife", "fork"]
@@ -117,7 +117,20 @@ def test_join_link_redirects_and_a_repeat_visit_returns_the_same_participant(app
     app_client.post(f"/api/v1/studies/{study}/close", headers=EXP)
     assert app_client.get(link, follow_redirects=False).status_code == 303  # returning participant still gets in
     r = app_client.get(f"/study/{study}/join?PROLIFIC_PID=late", follow_redirects=False)
-    assert r.status_code == 409 and "closed" in r.json()["detail"]
+    assert r.status_code == 409 and r.headers["content-type"].startswith("text/html")
+    assert "not open" in r.text and "{" not in r.text.split("<body>")[1]  # plain words for a person, no JSON
+
+
+def test_participant_facing_errors_are_html_pages_and_the_api_keeps_json(app_client) -> None:
+    draft = app_client.post("/api/v1/studies", json=study_spec(["active"]), headers=EXP).json()["id"]
+    for path, status in ((f"/study/{draft}/join", 409), ("/study/no-such-study/join", 404),
+                         ("/study/x/join?PROLIFIC_PID=bad%20id!", 422), ("/p/not-a-token", 404)):
+        r = app_client.get(path, follow_redirects=False)
+        assert r.status_code == status, path
+        assert r.headers["content-type"].startswith("text/html"), path
+        assert '"detail"' not in r.text and "<h1>" in r.text and "Prolific" in r.text, path
+    r = app_client.post(f"/api/v1/studies/{draft}/join", json={})
+    assert r.status_code == 409 and r.json()["detail"].startswith(f"study '{draft}' is draft")
 
 
 def test_declining_consent_withdraws(app_client) -> None:

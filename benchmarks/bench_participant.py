@@ -1,0 +1,152 @@
+"""Participant page speed in real Chromium on an idle server: click-to-panel latency, load to 3D view, idle tab CPU.
+
+    .venv/bin/python benchmarks/bench_participant.py [--clicks 20] [--viewport 1366x768] [--idle-seconds 10]
+
+- click to panel: a placement arrives at the server (POST /me/placements, the same service call a click in
+  the 3D view makes) and the page's side panel shows the robot busy, then the object on Table B; times
+  from the request to the panel's DOM change (MutationObserver, same machine clock), median and p95.
+- load to 3D view: from navigation start of /p/{token} (at a demonstration) until viser's client in the
+  frame has connected through the proxy and reported its camera (the server counts it as watching).
+- idle tab CPU: Chromium's own Performance.getMetrics TaskDuration over a quiet stretch with the 3D view
+  shown and nothing moving, as a share of one core.
+Uses /usr/bin/chromium (software WebGL on a machine without a GPU) and the MuJoCo robot.
+"""
+
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests" / "browser"))
+
+import httpx  # noqa: E402
+
+from conftest import LiveServer, launch_chromium  # noqa: E402
+from tests.web.conftest import open_study, study_spec  # noqa: E402
+
+OBJECTS = ["dinner_plate", "small_plate", "bowl", "knife", "fork"]
+WATCH_PANEL = """(name) => {
+  window.panelSeen = null;  // {busy, placed}: when the panel first showed the robot busy, then the object placed
+  let busy = null;
+  new MutationObserver((_, observer) => {
+    const status = document.querySelector('#status');
+    if (busy === null && status && status.classList.contains('busy')) busy = Date.now();
+    const placed = document.querySelector('.placed');
+    if (placed && placed.textContent.includes(name)) {
+      window.panelSeen = { busy, placed: Date.now() };
+      observer.disconnect();
+    }
+  }).observe(document.getElementById('panel'), { subtree: true, childList: true, characterData: true,
+    attributes: true });
+}"""
+
+
+def percentile(values: list[float], q: float) -> float:
+    """The q-quantile (0..1) by linear interpolation."""
+    ordered = sorted(values)
+    k = (len(ordered) - 1) * q
+    lo, hi = int(k), min(int(k) + 1, len(ordered) - 1)
+    return ordered[lo] + (ordered[hi] - ordered[lo]) * (k - lo)
+
+
+def wait_watching(server: LiveServer, key: str, timeout: float = 120.0) -> float:
+    """Wall-clock time (time.time) at which a browser first watches the table's view."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        activity = server.ctx.robot.activity(key)
+        if activity is not None and activity.watchers > 0:
+            return time.time()
+        time.sleep(0.01)
+    raise TimeoutError(f"no browser watched table {key} within {timeout} s")
+
+
+def main() -> None:
+    """Run the three measurements and print them."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--clicks", type=int, default=20)
+    parser.add_argument("--viewport", default="1366x768")
+    parser.add_argument("--idle-seconds", type=float, default=10.0)
+    parser.add_argument("--robot-speed", type=float, default=8.0, help="server playback speed (motion between clicks)")
+    args = parser.parse_args()
+    width, height = (int(v) for v in args.viewport.split("x"))
+    demos = -(-args.clicks // len(OBJECTS))
+    with tempfile.TemporaryDirectory() as root:
+        server = LiveServer(Path(root), robot="mujoco", robot_speed=args.robot_speed).start()
+        try:
+            spec = study_spec(["active"], n_practice=0, n_demonstrations=demos, n_queries=1, n_tests=0)
+            study_id = open_study(server.url, spec)
+            with launch_chromium({"width": width, "height": height}) as context:
+                page = context.new_page()
+                page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=bench")
+                token = page.url.rstrip("/").rsplit("/", 1)[-1]
+                headers = {"Authorization": f"Bearer {token}"}
+                page.get_by_role("button", name="I agree, continue").click()
+                page.get_by_role("button", name="Start").click()
+                page.get_by_role("button", name="Begin this task").click()
+                pid = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()["participant_id"]
+                key = f"{pid}/0"
+                wait_watching(server, key)
+
+                # Load to interactive 3D view: a fresh load of the page at the demonstration.
+                page.reload()
+                started = page.evaluate("() => performance.timeOrigin") / 1000
+                time.sleep(0.2)
+                watching = wait_watching(server, key)
+                load_seconds = watching - started
+
+                # Idle tab CPU: nothing moves, the view is shown.
+                time.sleep(3.0)
+                cdp = context.new_cdp_session(page)
+                cdp.send("Performance.enable")
+
+                def task_seconds() -> float:
+                    metrics = {m["name"]: m["value"] for m in cdp.send("Performance.getMetrics")["metrics"]}
+                    return float(metrics["TaskDuration"])
+
+                t0, c0 = time.monotonic(), task_seconds()
+                time.sleep(args.idle_seconds)
+                idle_share = (task_seconds() - c0) / (time.monotonic() - t0)
+
+                busy, placed = [], []
+                for i in range(args.clicks):
+                    obj = OBJECTS[i % len(OBJECTS)]
+                    page.evaluate(WATCH_PANEL, obj.replace("_", " "))
+                    sent = time.time()
+                    r = httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj}, headers=headers,
+                                   timeout=30)
+                    r.raise_for_status()
+                    page.wait_for_function("() => window.panelSeen !== null", timeout=30_000)
+                    seen = page.evaluate("() => window.panelSeen")
+                    placed.append(seen["placed"] / 1000 - sent)
+                    if seen["busy"] is not None:
+                        busy.append(seen["busy"] / 1000 - sent)
+                    # Wait until the robot is still (the next placement starts from a quiet server).
+                    page.wait_for_selector("#status:not(.busy)", timeout=60_000)
+                    if obj == OBJECTS[-1]:
+                        httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers).raise_for_status()
+                        page.wait_for_function("() => !document.querySelector('.placed')?.textContent.includes('fork')")
+                    time.sleep(0.3)
+        finally:
+            server.stop()
+
+    ms = [1000 * v for v in placed]
+    print(f"viewport {args.viewport}, robot speed {args.robot_speed}x, {len(ms)} placements")
+    print(f"placement request -> panel shows the object: median {statistics.median(ms):.0f} ms, "
+          f"p95 {percentile(ms, 0.95):.0f} ms, max {max(ms):.0f} ms")
+    if busy:
+        bms = [1000 * v for v in busy]
+        print(f"placement request -> panel shows the robot busy ({len(bms)} seen): median {statistics.median(bms):.0f} "
+              f"ms, p95 {percentile(bms, 0.95):.0f} ms")
+    print(f"page load -> 3D view connected and watching: {load_seconds:.2f} s")
+    print(f"idle participant tab (3D view shown, nothing moving): {100 * idle_share:.1f}% of one core "
+          f"(Chromium TaskDuration over {args.idle_seconds:.0f} s)")
+
+
+if __name__ == "__main__":
+    main()
