@@ -3,22 +3,17 @@ two app processes (each has its own connections, as separate processes would).""
 
 from __future__ import annotations
 
-import asyncio
 import threading
 import time
 from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor
 
 import pytest
 
 from tableteach.db import throwaway_postgres
 from tableteach.services.notify import LocalNotifier
+from tests.async_run import run_scenario
 
 
-def _run(scenario):  # type: ignore[no-untyped-def]
-    """asyncio.run(scenario()) in a thread of its own (a browser test may leave a loop running in this one)."""
-    with ThreadPoolExecutor(max_workers=1) as pool:
-        return pool.submit(lambda: asyncio.run(scenario())).result()
 
 
 def test_a_waiter_wakes_when_another_thread_publishes_and_times_out_otherwise() -> None:
@@ -33,7 +28,7 @@ def test_a_waiter_wakes_when_another_thread_publishes_and_times_out_otherwise() 
         behind = await notifier.wait(7, 0, timeout=5)  # already changed since 0: returns at once
         return woke, took, quiet, behind
 
-    woke, took, quiet, behind = _run(scenario)
+    woke, took, quiet, behind = run_scenario(scenario)
     assert woke == 1 and 0.15 < took < 2
     assert quiet == 0 and behind == 1
 
@@ -62,7 +57,7 @@ def test_a_notice_published_in_one_process_wakes_a_page_waiting_in_another(postg
             woke = await second.wait(42, 0, timeout=5)
             return woke, time.monotonic() - started
 
-        woke, took = _run(scenario)
+        woke, took = run_scenario(scenario)
         assert woke == 1 and took < 2
         time.sleep(0.3)  # the first process's own notice comes back to it too: it must not count it twice
         assert first.count(42) == 1 and second.count(42) == 1

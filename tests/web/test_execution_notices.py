@@ -18,7 +18,7 @@ from tableteach.web.viewer import _change_stream
 
 from .conftest import EXPERIMENTER_TOKEN
 from .helpers import bearer, demonstrate, make_study, to_teaching
-from .test_participant_ux import _run
+from tests.async_run import run_scenario
 
 SECONDS_PER_OBJECT = 0.3
 
@@ -163,7 +163,7 @@ def test_the_event_stream_wakes_itself_at_the_next_stored_action_end() -> None:
         await stream.aclose()
         return [first, second]
 
-    first, second = _run(scenario)
+    first, second = run_scenario(scenario)
     assert first.startswith("retry:") and "event: change" in second
 
 

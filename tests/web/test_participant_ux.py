@@ -14,24 +14,9 @@ from tableteach.services.guidance import lay_summary, required_objects
 from tableteach.web.viewer import _change_stream, participant_client_html
 
 from .helpers import EXP, bearer, demonstrate, make_study, to_teaching
+from tests.async_run import run_scenario
 
 
-def _run(scenario):  # type: ignore[no-untyped-def]
-    """asyncio.run(scenario()) in a thread of its own (a browser test may leave a loop running in this one)."""
-    out: dict = {}
-
-    def target() -> None:
-        try:
-            out["value"] = asyncio.run(scenario())
-        except BaseException as exc:  # re-raised in the test's thread
-            out["error"] = exc
-
-    thread = threading.Thread(target=target)
-    thread.start()
-    thread.join(30)
-    if "error" in out:
-        raise out["error"]
-    return out["value"]
 
 
 def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise() -> None:
@@ -47,7 +32,7 @@ def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise()
         other = await notifier.wait(7, woken, timeout=0.05)
         return quiet, woken, other
 
-    assert _run(scenario) == (0, 1, 1)
+    assert run_scenario(scenario) == (0, 1, 1)
     assert notifier.counter(8) == 1 and notifier.counter(9) == 0
 
 
@@ -65,7 +50,7 @@ def test_the_event_stream_sends_the_counter_then_each_change() -> None:
         await stream.aclose()
         return [first, second]
 
-    first, second = _run(scenario)
+    first, second = run_scenario(scenario)
     assert first.startswith("retry: ") and 'event: change\ndata: {"n":0,"robot":{"moving":false}}\n\n' in first
     assert second == 'event: change\ndata: {"n":1,"robot":{"moving":true}}\n\n'
 
