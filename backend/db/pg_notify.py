@@ -94,9 +94,3 @@ class PgNotifier(LocalNotifier):
                 self._sender_conn.close()
                 self._sender_conn = None
 
-
-def make_notifier(database_url: str) -> LocalNotifier:
-    """The notifier for a database: LISTEN/NOTIFY on PostgreSQL (several processes), in-process otherwise."""
-    if make_url(database_url).get_backend_name() == "postgresql":
-        return PgNotifier(database_url)
-    return LocalNotifier()

@@ -14,7 +14,7 @@ from ..db import repository as repo
 from ..db.engine import Database
 from ..errors import Conflict
 from ..robot import Robot, TraceRobot
-from .notify import LocalNotifier, participant_of_key
+from .notify import LocalNotifier, make_notifier, participant_of_key
 from .planning import Planner
 
 
@@ -82,8 +82,6 @@ class Context:
     def from_settings(settings: Settings, robot: Robot | None = None) -> "Context":
         """Open the database and its notifier; the robot is the one given (the app composes it) or else the trace
         robot."""
-        from ..db.pg_notify import make_notifier  # PostgreSQL: notices reach every app process
-
         if robot is None:
             robot = TraceRobot("dinner", settings.robot_seconds_per_object)
         return Context(Database(settings.database_url, busy_seconds=settings.database_busy_seconds), robot, settings,

@@ -10,6 +10,8 @@ from __future__ import annotations
 import asyncio
 import threading
 
+from sqlalchemy.engine import make_url
+
 
 class LocalNotifier:
     """In-process notices: publish() from any thread, wait() from any event loop."""
@@ -67,3 +69,12 @@ def participant_of_key(key: str) -> int | None:
     """The participant id of a robot table key "<participant id>/<task index>", or None for another form."""
     head, _, _ = key.partition("/")
     return int(head) if head.isdigit() else None
+
+
+def make_notifier(database_url: str) -> LocalNotifier:
+    """The notifier for a database: LISTEN/NOTIFY on PostgreSQL (several processes), in-process otherwise."""
+    if make_url(database_url).get_backend_name() == "postgresql":
+        from ..db.pg_notify import PgNotifier  # imports psycopg, which only PostgreSQL needs
+
+        return PgNotifier(database_url)
+    return LocalNotifier()

@@ -74,9 +74,26 @@ def test_a_notice_published_in_one_process_wakes_a_page_waiting_in_another(postg
 
 
 def test_the_notifier_only_listens_on_postgresql() -> None:
-    from tableteach.db.pg_notify import libpq_url, make_notifier
+    from tableteach.db.pg_notify import libpq_url
+    from tableteach.services.notify import make_notifier
 
     assert type(make_notifier("sqlite:///x.db")) is LocalNotifier
     assert libpq_url("postgresql+psycopg://u:p@h:5/db") == "postgresql://u:p@h:5/db"
     with pytest.raises(ValueError, match="not PostgreSQL"):
         libpq_url("sqlite:///x.db")
+
+
+def test_the_app_on_sqlite_needs_no_postgresql_driver(tmp_path) -> None:
+    """The base install has no psycopg (it is the `postgres` extra): serving on SQLite must not import it."""
+    import subprocess
+    import sys
+
+    code = ("import sys; sys.modules['psycopg'] = None\n"  # any `import psycopg` now fails
+            "from tableteach.config import Settings\n"
+            "from tableteach.web.app import create_app\n"
+            f"app = create_app(Settings(database_url='sqlite:///{tmp_path}/t.db', dev_mode=True, "
+            f"data_dir='{tmp_path}/data'))\n"
+            "print(type(app.state.context.notifier).__name__)\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert out.stdout.strip().endswith("LocalNotifier")
