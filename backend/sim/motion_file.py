@@ -3,7 +3,7 @@ so watching the robot costs the server one file per execution instead of 30 push
 
 One SceneView per process (the "studio", no browser ever connects to it) re-poses the scene for each
 recording under a lock; viser's scene serializer (ViserServer.get_scene_serializer) snapshots the scene,
-then records every pose change with the sleeps between frames (see /work/shared/spec/STACK.md, viser 1.1).
+then records every pose change with the sleeps between frames.
 """
 
 from __future__ import annotations
