@@ -247,8 +247,7 @@ def announce(ctx: Context, participant_id: int, execution: dict[str, Any] | None
             return
         _announcing.add(mark)
 
-    def tick() -> None:
-        ctx.notifier.publish(participant_id)
+    def schedule() -> None:
         wait = next_change_in(execution)
         if wait is None:
             with _announcing_lock:
@@ -256,12 +255,11 @@ def announce(ctx: Context, participant_id: int, execution: dict[str, Any] | None
             return
         _start_timer(wait, tick)
 
-    wait = next_change_in(execution)
-    if wait is None:
-        with _announcing_lock:
-            _announcing.discard(mark)
-        return
-    _start_timer(wait, tick)
+    def tick() -> None:
+        ctx.notifier.publish(participant_id)
+        schedule()
+
+    schedule()
 
 
 ANNOUNCE_LAG_SECONDS = 0.02  # a notice just after the action's end, so that the state read then shows it
