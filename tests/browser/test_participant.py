@@ -17,6 +17,7 @@ from tableteach.sim.recordings import list_recordings, load_recording
 from tests.web.conftest import EXPERIMENTER_TOKEN, open_study, study_spec
 from tests.web.helpers import participant_uid
 
+from conftest import LiveServer
 from scene_clicks import project, wait_for_camera
 
 pytestmark = pytest.mark.browser
@@ -421,3 +422,31 @@ def test_a_new_participant_walks_through_every_screen_without_dead_ends(chromium
     assert kinds.count("replay_watched") == 1 and kinds.index("replay_watched") < kinds.index("assessment")
     demo = next(e for e in events if e["kind"] == "demonstration")
     assert demo["trace"] == '[[],["dinner_plate"]]'
+
+
+UNCOVERED = """(b) => { const r = b.getBoundingClientRect(); const x = r.x + r.width / 2, y = r.y + r.height / 2;
+  return y >= 0 && y <= innerHeight && b.contains(document.elementFromPoint(x, y)); }"""
+
+
+def test_without_a_3d_view_the_phone_panel_has_the_screen_and_the_confirmation_fits(browser_page, tmp_path):
+    """A robot that shows no 3D view (the trace robot): on a phone the panel takes the whole screen, so the early
+    finish confirmation and both of its buttons are on screen, and the page does not speak of a 3D view."""
+    server = LiveServer(tmp_path, robot="trace").start()
+    try:
+        page = browser_page
+        page.set_viewport_size({"width": 390, "height": 844})
+        token = _begin(page, server, _study(server), "no-view")
+        headers = {"Authorization": f"Bearer {token}"}
+        assert httpx.post(f"{server.url}/api/v1/me/placements", json={"object": "dinner_plate"},
+                          headers=headers).status_code == 200
+        page.wait_for_function("() => document.querySelector('.placed')?.textContent.includes('dinner plate')")
+        assert "3D view" not in page.locator("#status").inner_text()
+        page.get_by_role("button", name="Finish demonstration").click()
+        page.get_by_role("button", name="Yes, finish now").wait_for()
+        _fits_on_screen(page, "#status")
+        for name in ("No, keep placing", "Yes, finish now"):  # on screen and not clipped by the panel's scrolling
+            button = page.get_by_role("button", name=name)
+            assert button.evaluate(UNCOVERED), f"{name!r} is clipped or covered"
+        _check_screen(page, token)
+    finally:
+        server.stop()
