@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from contextlib import contextmanager
+
 import os
 import signal
 import socket
@@ -128,9 +130,10 @@ def open_study(url: str, spec: dict[str, Any]) -> str:
         exp.close()
 
 
-@pytest.fixture
-def app_client(tmp_path: Path) -> Iterator[Any]:
-    """An in-process app (TestClient) on a migrated temp SQLite file; .ctx is its services context."""
+@contextmanager
+def in_process_app(tmp_path: Path, robot: Any = None) -> Iterator[Any]:
+    """An in-process app (TestClient) on a migrated temp SQLite file, with the given robot (default: the trace
+    robot); .ctx is its services context."""
     import warnings
 
     with warnings.catch_warnings():
@@ -139,12 +142,21 @@ def app_client(tmp_path: Path) -> Iterator[Any]:
 
     from tableteach.config import Settings
     from tableteach.db.migrate import upgrade_head
+    from tableteach.services import Context
     from tableteach.web.app import create_app
 
     settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN,
                         data_dir=tmp_path / "data")
     upgrade_head(settings.database_url)
-    app = create_app(settings)
+    context = None if robot is None else Context.from_settings(settings, robot)
+    app = create_app(settings, context=context)
     with TestClient(app) as client:
         client.ctx = app.state.context  # type: ignore[attr-defined]
+        yield client
+
+
+@pytest.fixture
+def app_client(tmp_path: Path) -> Iterator[Any]:
+    """An in-process app on a temp SQLite file with the trace robot (see in_process_app)."""
+    with in_process_app(tmp_path) as client:
         yield client

@@ -16,7 +16,7 @@ from tableteach.robot import ExecutionPlan, TraceRobot
 from tableteach.services import LocalNotifier, executions
 from tableteach.web.viewer import _change_stream
 
-from .conftest import EXPERIMENTER_TOKEN
+from .conftest import EXPERIMENTER_TOKEN, in_process_app
 from .helpers import bearer, demonstrate, make_study, to_teaching
 from tests.async_run import run_scenario
 
@@ -33,24 +33,7 @@ class RecordingTraceRobot(TraceRobot):
 
 @pytest.fixture
 def timed_client(tmp_path: Path) -> Iterator[Any]:
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        from starlette.testclient import TestClient
-
-    from tableteach.config import Settings
-    from tableteach.db.migrate import upgrade_head
-    from tableteach.services import Context
-    from tableteach.web.app import create_app
-
-    settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN,
-                        data_dir=tmp_path / "data")
-    upgrade_head(settings.database_url)
-    ctx = Context.from_settings(settings, RecordingTraceRobot("dinner", seconds_per_object=SECONDS_PER_OBJECT))
-    app = create_app(settings, context=ctx)
-    with TestClient(app) as client:
-        client.ctx = ctx  # type: ignore[attr-defined]
+    with in_process_app(tmp_path, RecordingTraceRobot("dinner", seconds_per_object=SECONDS_PER_OBJECT)) as client:
         yield client
 
 

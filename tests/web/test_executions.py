@@ -16,7 +16,7 @@ import pytest
 from tableteach.robot import ExecutionPlan, TraceRobot
 from tableteach.services import executions
 
-from .conftest import EXPERIMENTER_TOKEN
+from .conftest import in_process_app
 from .helpers import bearer, demonstrate, make_study, to_teaching
 
 
@@ -47,25 +47,7 @@ class SlowRobot(TraceRobot):
 
 @pytest.fixture
 def slow_client(tmp_path: Path) -> Iterator[Any]:
-    import warnings
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        from starlette.testclient import TestClient
-
-    from tableteach.config import Settings
-    from tableteach.db.migrate import upgrade_head
-    from tableteach.services import Context
-    from tableteach.web.app import create_app
-
-    settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN,
-                        data_dir=tmp_path / "data")
-    upgrade_head(settings.database_url)
-    ctx = Context.from_settings(settings)
-    ctx.robot = SlowRobot()
-    app = create_app(settings, context=ctx)
-    with TestClient(app) as client:
-        client.ctx = ctx  # type: ignore[attr-defined]
+    with in_process_app(tmp_path, SlowRobot()) as client:
         yield client
 
 
