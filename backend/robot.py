@@ -1,7 +1,7 @@
 """The robot seam: what the study server needs from a robot, and a physics-free implementation.
 
 The participant places objects one at a time during a demonstration (each placement returns the new
-labels); the robot carries out a query or test execution and reports its trace when it has finished.
+labels); the robot works out a query or test execution whole (plan_execution: its trace and its clock).
 The server records the labels and traces the robot reports, never ones it recomputes itself. Tables
 are keyed by a string the server chooses (one per participant and task). The MuJoCo robot
 (tableteach.sim.robot) implements the same protocol plus ViewingRobot (a 3D view per table); this seam
@@ -11,7 +11,6 @@ never imports it: the app is composed with one robot or the other in tableteach.
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
@@ -36,15 +35,6 @@ class ExecutionPlan:
     viewable: bool = False
 
 
-@dataclass(frozen=True)
-class RobotProgress:
-    """A robot execution: the intended objects, the labels observed so far, and whether it has finished."""
-
-    events: tuple[str, ...]
-    trace: tuple[Labels, ...]
-    finished: bool
-
-
 class Robot(Protocol):
     """What the server asks of a robot (the trace robot below, or the MuJoCo scene)."""
 
@@ -58,14 +48,6 @@ class Robot(Protocol):
 
     def placed(self, key: str) -> tuple[str, ...] | None:
         """Objects placed on this table so far, or None if the robot has no table for the key (e.g. after a restart)."""
-        ...
-
-    def execute(self, key: str, events: Sequence[str]) -> None:
-        """Start carrying out an execution from a cleared table (returns at once)."""
-        ...
-
-    def progress(self, key: str) -> RobotProgress | None:
-        """The execution under way or finished on this table, or None if the robot knows of none."""
         ...
 
     def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
@@ -118,20 +100,17 @@ class ViewingRobot(Protocol):
 @dataclass
 class _Table:
     placed: list[str] = field(default_factory=list)
-    execution: tuple[str, ...] | None = None
-    trace: tuple[Labels, ...] = ()
-    started: float = 0.0
 
 
 class TraceRobot:
-    """A robot without physics: labels are the placed objects (domain.trace_of); executions may take time."""
+    """A robot without physics: labels are the placed objects (domain.trace_of); executions take
+    seconds_per_object per action on their stored clock."""
 
     def __init__(self, task: str = "dinner", seconds_per_object: float = 0.0) -> None:
         self.domain: Domain = get_domain(task)
         self.seconds_per_object = seconds_per_object
         self._tables: dict[str, _Table] = {}
         self._lock = threading.Lock()
-        self.on_change: Callable[[str], None] | None = None  # told a table's key when a timed execution finishes
 
     def reset(self, key: str) -> Labels:
         """Clear the table; the initial labels."""
@@ -145,7 +124,6 @@ class TraceRobot:
             table = self._tables.setdefault(key, _Table())
             history = self.domain.step(tuple(table.placed), obj)
             table.placed = list(history)
-            table.execution = None
             return self.domain.labels(history)
 
     def placed(self, key: str) -> tuple[str, ...] | None:
@@ -153,22 +131,6 @@ class TraceRobot:
         with self._lock:
             table = self._tables.get(key)
             return None if table is None else tuple(table.placed)
-
-    def execute(self, key: str, events: Sequence[str]) -> None:
-        """Start an execution; its trace is revealed one placement per seconds_per_object.
-
-        ValueError names the first object that cannot be placed (unknown, or placed twice)."""
-        history: tuple[str, ...] = ()
-        for obj in events:  # refuse the whole request before anything is recorded, as the MuJoCo robot does
-            history = self.domain.step(history, obj)
-        trace = tuple(self.domain.trace_of(tuple(events)))
-        with self._lock:
-            self._tables[key] = _Table(placed=list(events), execution=tuple(events), trace=trace,
-                                       started=time.monotonic())
-        if self.seconds_per_object > 0 and self.on_change is not None:
-            timer = threading.Timer(self.seconds_per_object * len(events) + 0.01, self.on_change, args=(key,))
-            timer.daemon = True
-            timer.start()
 
     def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
         """The execution's trace, one action per seconds_per_object / speed; ValueError names an object it cannot
@@ -181,20 +143,6 @@ class TraceRobot:
         events = tuple(events)
         ends = tuple(self.seconds_per_object / speed * (i + 1) for i in range(len(events)))
         return ExecutionPlan(events, tuple(self.domain.trace_of(events)), ends)
-
-    def progress(self, key: str) -> RobotProgress | None:
-        """The execution's labels so far and whether it has finished."""
-        with self._lock:
-            table = self._tables.get(key)
-            if table is None or table.execution is None:
-                return None
-            elapsed = time.monotonic() - table.started
-        if self.seconds_per_object <= 0:
-            done = len(table.execution)
-        else:
-            done = min(len(table.execution), int(elapsed / self.seconds_per_object))
-        finished = done == len(table.execution) and elapsed >= self.seconds_per_object * len(table.execution)
-        return RobotProgress(table.execution, table.trace[: done + 1], finished)
 
     def release(self, key: str) -> None:
         """Forget the table."""

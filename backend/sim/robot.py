@@ -3,10 +3,10 @@ viser SceneView started when a page asks for it, and a player thread that shows 
 
 Physics runs as soon as the server asks (a placement costs about 0.25 s of CPU), so a placement's
 labels come back without waiting for the motion to be shown and no database transaction waits for
-an animation; the view then plays the recorded frames. Executions simulate and show one action at a
-time in the player thread, and their trace grows only once an action has been shown, so a participant
-judges what they saw. Nobody watching: everything fast-forwards. Labels always come from
-MujocoWorld.labels(), MuJoCo's labeling function. See docs/frontend.md.
+an animation; the view then plays the recorded frames (nobody watching: they fast-forward). The robot's
+own executions are worked out whole (plan_execution) and saved as a .viser file that the browser plays,
+so no process streams them. Labels always come from MujocoWorld.labels(), MuJoCo's labeling function.
+See docs/frontend.md.
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
-from ..robot import ExecutionPlan, RobotActivity, RobotProgress
+from ..robot import ExecutionPlan, RobotActivity
 from .motion_file import Studio, viser_path, write_atomically
 from .physics import MujocoWorld
 from .playback import play
@@ -53,13 +53,10 @@ class _Table:
         self.view: SceneView | None = None
         self.ops = threading.Lock()
         self.lock = threading.RLock()
-        self.active = False  # False until reset/place/execute and after release: placed()/progress() say None
+        self.active = False  # False until reset/place and after release: placed() says None
         self.on_click: Callable[[str], None] | None = None
         self.clicking = False
         self.pending: deque[tuple[str, Recording]] = deque()  # placements simulated but not yet shown
-        self.execution: tuple[str, ...] | None = None
-        self.shown = 0  # actions of the execution shown so far
-        self.next_segment: Recording | None = None  # the simulated action the player shows next
         self.action_ends: list[float] = []  # simulated time at which each action since the reset ended
         self.caption = ""
         self.player: threading.Thread | None = None
@@ -112,10 +109,6 @@ class MujocoRobot:
         """Simulate placing `obj` now and return the labels; the view shows the motion afterwards."""
         table = self._table(key)
         with table.ops:
-            if table.execution is not None:  # as TraceRobot: a placement ends any execution
-                self._halt(table)
-                with table.lock:
-                    table.execution, table.shown = None, 0
             with table.lock:
                 table.active = True
                 start = len(table.world.recording) - 1
@@ -138,22 +131,6 @@ class MujocoRobot:
             return None
         with table.lock:
             return tuple(table.world.placed) if table.active else None
-
-    def execute(self, key: str, events: Sequence[str]) -> None:
-        """Start an execution from a cleared table; the player thread simulates and shows it action by action."""
-        table = self._table(key)
-        events = tuple(events)
-        check_sequence(events, table.world.objects)  # refuse the whole request before anything moves
-        with table.ops:
-            self._halt(table)
-            with table.lock:
-                self._clear(table)
-                table.active = True
-                table.on_click = None
-                table.execution = events
-            self._refresh(table)
-            self._start_player(table)
-        self._changed(table)
 
     def prepare(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> Future[ExecutionPlan]:
         """plan_execution in the background: the plan already made, the one under way, or a new one."""
@@ -237,17 +214,6 @@ class MujocoRobot:
             if self._studio is None:
                 self._studio = Studio(world.model)
             return self._studio
-
-    def progress(self, key: str) -> RobotProgress | None:
-        """The execution's labels for the actions shown so far, and whether all have been shown."""
-        table = self._get(key)
-        if table is None:
-            return None
-        with table.lock:
-            if not table.active or table.execution is None:
-                return None
-            trace = tuple(table.world.trace[: table.shown + 1])
-            return RobotProgress(table.execution, trace, table.shown >= len(table.execution))
 
     def release(self, key: str) -> None:
         """Forget the table's contents; its view (if any) stays up showing a cleared table."""
@@ -366,8 +332,6 @@ class MujocoRobot:
     def _clear(self, table: _Table) -> None:
         """Reset the world and the table's bookkeeping (caller holds table.lock, player halted)."""
         table.world.reset(table.seed)
-        table.execution = None
-        table.shown = 0
         table.pending.clear()
         table.action_ends = []
         table.caption = ""
@@ -394,39 +358,21 @@ class MujocoRobot:
         with table.lock:
             if table.player is not None:
                 return
-            if not table.pending and (table.execution is None or table.shown >= len(table.execution)):
+            if not table.pending:
                 return
             table.player = threading.Thread(target=self._play, args=(table,), name=f"robot-{table.key}", daemon=True)
             table.player.start()
 
-    def _next_motion(self, table: _Table) -> tuple[str, Recording, bool] | None:
-        """Simulate the execution's next action, or take a pending placement (caller holds table.lock)."""
-        ex = table.execution
-        if ex is not None and table.shown < len(ex):
-            world = table.world
-            if len(world.placed) == table.shown:  # not simulated yet
-                start = len(world.recording) - 1
-                world.place(ex[table.shown])
-                table.action_ends.append(float(world.data.time))
-                table.next_segment = world.recording.since(start)
-            caption = f"The robot is placing the {_pretty(ex[table.shown])} ({table.shown + 1} of {len(ex)})"
-            assert table.next_segment is not None
-            return caption, table.next_segment, True
-        if table.pending:
-            caption, segment = table.pending.popleft()
-            return caption, segment, False
-        return None
 
     def _play(self, table: _Table) -> None:
         """Player thread: show each motion at wall-clock speed while watched, else jump to its end."""
         try:
             while not table.stop.is_set():
                 with table.lock:
-                    motion = self._next_motion(table)
-                    if motion is None:
+                    if not table.pending:  # every placement simulated so far has been shown
                         table.player = None
                         break
-                    caption, segment, is_action = motion
+                    caption, segment = table.pending.popleft()
                     table.caption = caption
                 self._changed(table)
                 view = table.view
@@ -439,14 +385,8 @@ class MujocoRobot:
                 with table.lock:
                     if view is not None:
                         view.set_poses(segment.bodies, segment.poses[-1])
-                    if is_action:
-                        table.shown += 1
         except Exception:
             log.exception("robot %s failed while moving", table.key)
-            with table.lock:  # report what was simulated rather than hang the participant forever
-                if table.execution is not None:
-                    table.execution = table.execution[: len(table.world.placed)]
-                    table.shown = len(table.execution)
         finally:
             with table.lock:
                 if table.player is threading.current_thread():
@@ -473,10 +413,9 @@ class MujocoRobot:
         if view is None:
             return
         with table.lock:
-            idle = not table.pending and not table.clicking and (
-                table.execution is None or table.shown >= len(table.execution))
+            idle = not table.pending and not table.clicking
             want = set()
-            if table.on_click is not None and table.execution is None and idle and table.player is None:
+            if table.on_click is not None and idle and table.player is None:
                 want = {o for o in table.world.objects if o not in table.world.placed}
         for obj in table.world.objects:
             view.set_clickable(obj, obj in want)

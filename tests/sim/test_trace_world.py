@@ -62,9 +62,9 @@ def test_the_trace_robot_refuses_an_execution_it_cannot_carry_out_as_the_mujoco_
 
     robot = TraceRobot()
     with pytest.raises(ValueError, match="'fork' is already placed"):
-        robot.execute("t", ["fork", "bowl", "fork"])
+        robot.plan_execution("t", ["fork", "bowl", "fork"], "participant-x/task-0/query-0")
     with pytest.raises(ValueError, match="unknown action 'spoon'"):
-        robot.execute("t", ["spoon"])
-    assert robot.progress("t") is None  # nothing was started
-    robot.execute("t", ["fork", "bowl"])
-    assert robot.progress("t").finished and robot.progress("t").events == ("fork", "bowl")
+        robot.plan_execution("t", ["spoon"], "participant-x/task-0/query-0")
+    plan = robot.plan_execution("t", ["fork", "bowl"], "participant-x/task-0/query-0")
+    assert plan.events == ("fork", "bowl")
+    assert plan.trace == (frozenset(), frozenset({"fork"}), frozenset({"fork", "bowl"}))

@@ -120,17 +120,6 @@ def test_the_participant_copy_of_the_viewer_hides_its_controls() -> None:
         participant_client_html(b"<html><body></body></html>")
 
 
-def test_the_trace_robot_announces_when_a_timed_execution_finishes() -> None:
-    from tableteach.robot import TraceRobot
-
-    robot = TraceRobot("dinner", seconds_per_object=0.02)
-    told = threading.Event()
-    robot.on_change = lambda key: told.set() if key == "4/0" else None
-    robot.execute("4/0", ["dinner_plate", "bowl"])
-    assert told.wait(2.0)
-    assert robot.progress("4/0").finished
-
-
 def test_progress_follows_the_participants_own_task_order(app_client) -> None:
     study = make_study(app_client, tasks=[{"key": "task1"}, {"key": "task2"}], task_order="balanced",
                        n_practice=0, n_demonstrations=1, n_queries=0, n_tests=0)
