@@ -33,6 +33,8 @@ class Settings(BaseSettings):
         description="how long the trace robot takes per placement")
     robot_speed: float = Field(1.0, gt=0.0, le=50.0,
         description="MuJoCo robot: playback speed of its motion (1 = real time)")
+    robot_workers: int = Field(1, ge=0, le=64,
+        description="MuJoCo robot: worker processes that work its executions out (0: inside the server process)")
     viewer_idle_minutes: float = Field(10.0, gt=0.0,
         description="stop a participant's 3D view this long after its last use")
     data_dir: Path = Field(Path(DEFAULT_DATA_DIR),

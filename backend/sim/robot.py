@@ -1,11 +1,12 @@
 """The study server's MuJoCo robot (tableteach.robot.Robot and ViewingRobot): per key a MujocoWorld, a
 viser SceneView started when a page asks for it, and a player thread that shows motions in real time.
 
-Physics runs as soon as the server asks (a placement costs about 0.25 s of CPU), so a placement's
+Physics runs as soon as the server asks (a placement costs about 80 ms, in MuJoCo's C code), so a placement's
 labels come back without waiting for the motion to be shown and no database transaction waits for
 an animation; the view then plays the recorded frames (nobody watching: they fast-forward). The robot's
-own executions are worked out whole (plan_execution) and saved as a .viser file that the browser plays,
-so no process streams them. Labels always come from MujocoWorld.labels(), MuJoCo's labeling function.
+own executions are worked out whole (plan_execution), in robot worker processes when `workers` > 0
+(tableteach.sim.worker_pool), and saved as a .viser file that the browser plays, so no process streams
+them. Labels always come from MujocoWorld.labels(), MuJoCo's labeling function.
 See docs/frontend.md.
 """
 
@@ -21,21 +22,18 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
 from ..robot import ExecutionPlan, RobotActivity
-from .motion_file import Studio, viser_path, write_atomically
+from .motion_file import viser_path
 from .physics import MujocoWorld
 from .playback import play
 from .recording import Recording
 from .recordings import RecordingId, SavedRecording, save_recording
 from .view import SceneView
-from .world import check_sequence
+from .work_out import StudioSource, pretty, work_out_execution
+from .worker_pool import ExecutionWorkers
 
 log = logging.getLogger(__name__)
 
 Labels = frozenset[str]
-
-
-def _pretty(obj: str) -> str:
-    return obj.replace("_", " ")
 
 
 def table_seed(key: str) -> int:
@@ -74,9 +72,13 @@ class _Table:
 
 
 class MujocoRobot:
-    """Tables keyed by the server's string; thread-safe; idle views are stopped after `idle_seconds`."""
+    """Tables keyed by the server's string; thread-safe; idle views are stopped after `idle_seconds`.
 
-    def __init__(self, *, speed: float = 1.0, data_dir: Path | str = "var/data", idle_seconds: float = 600.0) -> None:
+    Executions are worked out in `workers` worker processes, or in this process when it is 0.
+    """
+
+    def __init__(self, *, speed: float = 1.0, data_dir: Path | str = "var/data", idle_seconds: float = 600.0,
+                 workers: int = 0) -> None:
         if speed <= 0:
             raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.0")
         self.speed = speed
@@ -86,7 +88,8 @@ class MujocoRobot:
         self._lock = threading.Lock()
         self._reaper: threading.Thread | None = None
         self._closing = threading.Event()
-        self._studio: Studio | None = None
+        self._studio = StudioSource()  # executions worked out in this process (workers == 0)
+        self._workers = ExecutionWorkers(workers) if workers > 0 else None
         self._plans: dict[tuple[str, tuple[str, ...], str, float], ExecutionPlan] = {}  # the last few: plan_execution
         self._preparing: dict[tuple[str, tuple[str, ...], str, float], Future[ExecutionPlan]] = {}
         self._prep_pool: ThreadPoolExecutor | None = None
@@ -115,7 +118,7 @@ class MujocoRobot:
                 labels = table.world.place(obj)  # PlacementError (a ValueError) for an unknown or moved object
                 table.action_ends.append(float(table.world.data.time))
                 if table.watchers > 0:
-                    table.pending.append((f"The robot is placing the {_pretty(obj)}",
+                    table.pending.append((f"The robot is placing the {pretty(obj)}",
                                           table.world.recording.since(start)))
                 else:
                     self._show_still(table)
@@ -146,7 +149,8 @@ class MujocoRobot:
             if self._closing.is_set():
                 raise RuntimeError("the robot is shutting down: expected no new executions")
             if self._prep_pool is None:
-                self._prep_pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="robot-prepare")
+                self._prep_pool = ThreadPoolExecutor(max_workers=max(1, self._workers.size if self._workers else 1),
+                                                     thread_name_prefix="robot-prepare")
             future = self._preparing[memo] = self._prep_pool.submit(self._work_out, key, tuple(events), name, speed)
             return future
 
@@ -183,37 +187,15 @@ class MujocoRobot:
 
     def _simulate(self, key: str, events: tuple[str, ...], rid: RecordingId,
                   memo: tuple[str, tuple[str, ...], str, float], rate: float) -> ExecutionPlan:
-        world = MujocoWorld(table_seed(key))
-        try:
-            check_sequence(events, world.objects)  # refuse the whole request before anything moves
-            start = float(world.data.time)
-            starts, ends = [], []
-            for obj in events:
-                starts.append(float(world.data.time))
-                world.place(obj)
-                ends.append(float(world.data.time))
-            recording = world.recording
-            saved = SavedRecording(rid, recording, tuple(world.placed), tuple(world.trace), tuple(ends))
-            save_recording(self.data_dir, saved)
-            captions = [(t0, f"The robot is placing the {_pretty(obj)} ({i + 1} of {len(events)})")
-                        for i, (t0, obj) in enumerate(zip(starts, events, strict=True))]
-            write_atomically(viser_path(self.data_dir, rid), self._studio_of(world).render(
-                recording, captions, speed=rate))
-            worked = ExecutionPlan(events, tuple(world.trace), tuple((end - start) / rate for end in ends),
-                                   viewable=True)
-        finally:
-            world.close()
+        if self._workers is not None:
+            worked = self._workers.run(self.data_dir, table_seed(key), events, rid, rate)
+        else:
+            worked = work_out_execution(self._studio, self.data_dir, table_seed(key), events, rid, rate)
         with self._lock:
             if len(self._plans) >= 1024:
                 self._plans.pop(next(iter(self._plans)))
             self._plans[memo] = worked
         return worked
-
-    def _studio_of(self, world: MujocoWorld) -> Studio:
-        with self._lock:
-            if self._studio is None:
-                self._studio = Studio(world.model)
-            return self._studio
 
     def release(self, key: str) -> None:
         """Forget the table's contents; its view (if any) stays up showing a cleared table."""
@@ -296,8 +278,9 @@ class MujocoRobot:
             self._shut(table)
         if self._prep_pool is not None:
             self._prep_pool.shutdown(wait=True, cancel_futures=True)
-        if self._studio is not None:
-            self._studio.close()
+        if self._workers is not None:
+            self._workers.close()
+        self._studio.close()
 
     # -- internals -----------------------------------------------------------------------------------
     def _get(self, key: str) -> _Table | None:
@@ -428,7 +411,7 @@ class MujocoRobot:
                 return
             table.clicking = True
             if table.player is None:
-                table.caption = f"The robot is placing the {_pretty(obj)}"
+                table.caption = f"The robot is placing the {pretty(obj)}"
         self._refresh(table)
         self._changed(table)
         try:
