@@ -22,6 +22,8 @@ participant, the database's CPU and transactions, and last:
 
     participants N processes K rest_p99_ms X min_fps Y errors Z
 
+where X is the worst action's p99 (the target holds for every action, not only for all requests pooled).
+
     .venv/bin/python benchmarks/bench_scale.py --participants 20 --processes 2
 """
 
@@ -50,6 +52,7 @@ from tableteach.core.domain import get_domain
 from tableteach.core.teachers import SimulatedTeacher
 
 TARGET_P99_MS = 200.0
+NOT_REST = "recording"  # the wait for an execution's file: timed with the actions, but it waits for the robot
 TARGET_FPS = 25.0
 TARGET_STALL_S = 0.5
 TAB_RENEW_S = 5.0  # frontend/participant.js HEARTBEAT_MS
@@ -89,6 +92,12 @@ def _children(pid: int) -> list[int]:
             except (OSError, ValueError, IndexError):
                 continue
     return out
+
+
+def _process_tree_cpu(pid: int) -> tuple[float, float]:
+    """CPU seconds of a server process, and of its children (robot workers, live and ended)."""
+    own = _cpu_seconds(pid)
+    return own, _cpu_seconds(pid, children=True) - own + sum(_cpu_seconds(c, children=True) for c in _children(pid))
 
 
 class Database:
@@ -194,7 +203,7 @@ class Results:
 
     def rest_latencies(self) -> np.ndarray:
         """Every REST action's latency (the recording download, which waits for the robot, is not one)."""
-        return np.array([x for name, xs in self.latencies.items() if name != "recording" for x in xs])
+        return np.array([x for name, xs in self.latencies.items() if name != NOT_REST for x in xs])
 
 
 def viser_frames(data: bytes) -> list[float]:
@@ -328,7 +337,7 @@ class Participant:
             ready = time.perf_counter()
             body = await response.aread()
         done = time.perf_counter()
-        self.results.rest("recording", ready - started)
+        self.results.rest(NOT_REST, ready - started)
         if response.status_code != 200:
             self.results.errors.append(f"GET recording: HTTP {response.status_code}")
             return
@@ -406,27 +415,37 @@ def main(argv: list[str] | None = None) -> int:
         print(f"study: 2 demonstrations, 2 queries, 1 test; {args.participants} participants arriving over "
               f"{ramp:.0f} s, think {args.think} s, page refresh {args.poll} s", flush=True)
 
-        cpu_before = [_cpu_seconds(p.pid) for p in procs]
+        cpu_before = [_process_tree_cpu(p.pid) for p in procs]
         db_cpu_before, xacts_before = db.cpu_seconds(), db.transactions()
         results = Results()
         started = time.monotonic()
         asyncio.run(run_participants(args.participants, urls, study["id"], args.think, args.poll, ramp, results))
         wall = time.monotonic() - started
-        cpu = [_cpu_seconds(p.pid) - before for p, before in zip(procs, cpu_before, strict=True)]
+        cpu = [tuple(a - b for a, b in zip(_process_tree_cpu(p.pid), before, strict=True))
+               for p, before in zip(procs, cpu_before, strict=True)]
         db_cpu_after, xacts = db.cpu_seconds(), db.transactions() - xacts_before
 
     lat = results.rest_latencies()
-    p99 = float(np.percentile(lat, 99)) * 1000 if len(lat) else float("inf")
+    p99_all = float(np.percentile(lat, 99)) * 1000 if len(lat) else float("inf")
+    p99_by_action = {a: float(np.percentile(xs, 99)) * 1000 for a, xs in results.latencies.items()
+                     if xs and a != NOT_REST}
+    worst = max(p99_by_action, key=p99_by_action.__getitem__, default="none")
+    p99 = p99_by_action.get(worst, float("inf"))  # the target is every action's p99, so the worst one counts
     print(f"\n{results.completed}/{args.participants} sessions completed in {wall:.0f} s; {len(lat)} REST requests "
           f"({len(lat) / wall:.1f}/s)")
     print(f"{'action':<14}{'n':>7}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}")
     for action, xs in sorted(results.latencies.items()):
         a = np.array(xs) * 1000
         print(f"{action:<14}{len(a):>7}{np.percentile(a, 50):>9.1f}{np.percentile(a, 99):>9.1f}{a.max():>9.1f}")
-    for i, c in enumerate(cpu):
-        print(f"app process {i}: {c:.1f} CPU s ({100 * c / wall:.0f}% of a core)")
-    print(f"app CPU per participant: {sum(cpu) / args.participants:.2f} s per session "
-          f"({1000 * sum(cpu) / max(1, len(lat)):.1f} ms per request)")
+    print(f"all requests: p99 {p99_all:.0f} ms; the worst action's p99: {worst} {p99:.0f} ms")
+    for i, (server, workers) in enumerate(cpu):
+        print(f"app process {i}: {server + workers:.1f} CPU s ({100 * (server + workers) / wall:.0f}% of a core): "
+              f"server {server:.1f} s ({100 * server / wall:.0f}%), its robot workers {workers:.1f} s "
+              f"({100 * workers / wall:.0f}%)")
+    server_cpu, worker_cpu = sum(c[0] for c in cpu), sum(c[1] for c in cpu)
+    print(f"app CPU per participant: {(server_cpu + worker_cpu) / args.participants:.2f} s per session "
+          f"(server {server_cpu / args.participants:.2f} s, {1000 * server_cpu / max(1, len(lat)):.1f} ms per "
+          f"request; robot workers {worker_cpu / args.participants:.2f} s)")
     if db_cpu_before is not None and db_cpu_after is not None:
         db_cpu = db_cpu_after - db_cpu_before
         print(f"database: {db_cpu:.1f} CPU s ({100 * db_cpu / wall:.0f}% of a core), {xacts} transactions "
@@ -448,7 +467,8 @@ def main(argv: list[str] | None = None) -> int:
     stall = max((max(w["max_gap"], w["transfer"]) for w in results.watched), default=0.0)
     fps_ok = args.robot == "trace" or (bool(results.watched) and min_fps >= TARGET_FPS and stall <= TARGET_STALL_S)
     ok = (p99 < TARGET_P99_MS and not results.errors and results.completed == args.participants and fps_ok)
-    print(f"targets: rest p99 < {TARGET_P99_MS:.0f} ms, fps >= {TARGET_FPS:.0f}, stall <= {TARGET_STALL_S} s, "
+    print(f"targets: every action's p99 < {TARGET_P99_MS:.0f} ms, fps >= {TARGET_FPS:.0f}, "
+          f"stall <= {TARGET_STALL_S} s, "
           f"0 errors, all sessions done: {'met' if ok else 'MISSED'}")
     print(f"participants {args.participants} processes {args.processes} rest_p99_ms {p99:.0f} min_fps {min_fps:.1f} "
           f"errors {len(results.errors)}")
