@@ -271,6 +271,9 @@ def _teach_step(api: ParticipantClient, state: dict[str, Any], teachers: list[Si
         events = [e for e in teacher.demonstrate(rng).events if e not in state["demonstration"]["placed"]]
         for obj in events:
             state = api.place(obj, guard)
+        while not state["demonstration"].get("settled", True):  # the robot reports the table after its physics
+            time.sleep(poll_seconds)
+            state = api.state()
         trace = state["demonstration"]["trace"]
         state = api.finish(guard)
         run.actions.append({"kind": step["kind"], "task_index": task_index, "index": step["index"],

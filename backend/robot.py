@@ -50,6 +50,10 @@ class Robot(Protocol):
         """Objects placed on this table so far, or None if the robot has no table for the key (e.g. after a restart)."""
         ...
 
+    def trace(self, key: str) -> tuple[Labels, ...] | None:
+        """The table's labels after its reset and after each placement so far (None as for placed)."""
+        ...
+
     def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
         """Work the whole execution out now (nothing is shown) and keep its recording as `name` if it records any.
 
@@ -131,6 +135,11 @@ class TraceRobot:
         with self._lock:
             table = self._tables.get(key)
             return None if table is None else tuple(table.placed)
+
+    def trace(self, key: str) -> tuple[Labels, ...] | None:
+        """The labels after the reset and after each placement so far, or None for an unknown table."""
+        placed = self.placed(key)
+        return None if placed is None else tuple(self.domain.trace_of(placed))
 
     def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
         """The execution's trace, one action per seconds_per_object / speed; ValueError names an object it cannot

@@ -107,11 +107,13 @@ function demonstrationPanel(state, live, { onPlace, onFinish, onConfirmFinish, o
   const { step, demonstration } = state;
   const placed = demonstration.placed;
   const waiting = state.objects.filter((o) => !placed.includes(o));
-  const moving = live.moving || pending;
+  const placing = demonstration.settled === false; // stored, but the robot has not reported the table yet
+  const moving = live.moving || pending || placing;
   const practice = step.kind === "practice";
   const missing = missingRequired(state);
+  const caption = live.caption || (placing ? `The robot is placing the ${pretty(placed[placed.length - 1])}` : "");
   const status = moving
-    ? (live.caption ? `${live.caption}. Please wait until it has finished.` : "The robot is busy. Please wait.")
+    ? (caption ? `${caption}. Please wait until it has finished.` : "The robot is busy. Please wait.")
     : waiting.length
       ? `Click the next object ${live.view === false ? "below" : "in the 3D view"}, or finish if the table is set.`
       : "All objects are on Table B. Press the finish button.";

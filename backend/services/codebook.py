@@ -62,12 +62,15 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
     },
     "events": {
         "seq": ("integer", "the event's number in the participant's log, from 1", ""),
-        "kind": ("category", "what happened", "joined, consent, instructions_read, quiz, task_started, place, "
+        "kind": ("category", "what happened", "joined, consent, instructions_read, quiz, task_started, place (the "
+                 "participant chose an object), placed (the robot reported the table after placing it), "
                  "demonstration, execution_started, execution_finished, replay_watched (the participant watched "
                  "the robot's finished execution again), assessment, task_finished, questionnaire, completed, "
                  "withdrawn, screened_out"),
-        "object": ("category", "the object placed (place events)", "dinner_plate, small_plate, bowl, knife, fork"),
-        "labels": ("json", "the objects on the table after a placement", "JSON list"),
+        "object": ("category", "the object placed (place and placed events)",
+                   "dinner_plate, small_plate, bowl, knife, fork"),
+        "labels": ("json", "the objects in their places on the table after a placement, as the robot reported them "
+                   "(placed events)", "JSON list"),
         "robot_events": ("json", "the objects the robot placed, in order", "JSON list"),
         "p_acceptable": ("number", "the learner's probability that the robot's execution was acceptable",
                          "probability 0-1"),

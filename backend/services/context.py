@@ -15,6 +15,7 @@ from ..db.engine import Database
 from ..errors import Conflict
 from ..robot import Robot, TraceRobot
 from .notify import LocalNotifier, make_notifier, participant_of_key
+from .placement_queue import PlacementQueue
 from .planning import Planner
 
 
@@ -59,7 +60,8 @@ class TabLeases:
 
 @dataclass
 class Context:
-    """What every action needs: the database, the robot and the settings (plus tab leases and the planner)."""
+    """What every action needs: the database, the robot and the settings (plus tab leases, the planner, the page
+    notifier and the placements waiting for the robot)."""
 
     db: Database
     robot: Robot
@@ -67,6 +69,7 @@ class Context:
     tabs: TabLeases = field(default_factory=TabLeases)
     planner: Planner = field(default_factory=Planner)
     notifier: LocalNotifier = field(default_factory=LocalNotifier)
+    placements: PlacementQueue = field(default_factory=PlacementQueue)
 
     def __post_init__(self) -> None:
         # A robot that reports its own changes (motion starts, next action, stops) tells the participant's page.

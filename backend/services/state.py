@@ -161,7 +161,10 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
             if kind in ("practice", "demonstration"):
                 out["demonstration"] = {"placed": list(ts.demo_placed),
                                         "labels": ts.demo_trace[-1] if ts.demo_trace else [],
-                                        "trace": list(ts.demo_trace)}
+                                        "trace": list(ts.demo_trace),
+                                        # the robot has reported the table after every placement
+                                        "settled": len(ts.demo_trace) >= len(ts.demo_placed) + 1
+                                        or not ts.demo_placed}
             elif kind in ROBOT_TURNS:
                 ex = ts.execution
                 if ex is not None and (ex["kind"], ex["index"]) == (kind, index):

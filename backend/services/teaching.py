@@ -11,7 +11,7 @@ from ..db import repository as repo
 from ..db.tables import TaskSessionRow, utcnow
 from ..errors import Conflict, InvalidInput
 from ..sim.recordings import RecordingId
-from . import executions
+from . import executions, placements
 from .context import Context
 from .planning import ROBOT_TURNS, session_of
 from .state import (
@@ -59,35 +59,27 @@ def _teaching(a: Action, expect: Expect, kinds: tuple[str, ...]) -> tuple[TaskSe
     return ts, state, step
 
 
-def _sync_demonstration(a: Action, ts: TaskSessionRow) -> None:
-    """Make the robot's table match the stored placements (it forgets them on a restart)."""
-    key = robot_key(a.participant, ts.task_index)
-    if not ts.demo_trace:
-        initial = a.ctx.robot.reset(key)
-        ts.demo_trace = [sorted(initial)]
-    elif a.ctx.robot.placed(key) != tuple(ts.demo_placed):
-        a.ctx.robot.reset(key)
-        for obj in ts.demo_placed:
-            a.ctx.robot.place(key, obj)
-
-
 def place_object(ctx: Context, token: str, *, obj: str, expect: Expect, key: str | None = None) -> dict[str, Any]:
-    """During a practice trial or demonstration, the participant places one object on the table."""
+    """During a practice trial or demonstration, the participant places one object on the table (the robot's
+    labels follow: services.placements)."""
     def run(a: Action) -> None:
         ts, _state_, step = _teaching(a, expect, ("practice", "demonstration"))
         if obj not in DINNER_OBJECTS:
             raise InvalidInput(f"unknown object {obj!r}; expected one of {', '.join(DINNER_OBJECTS)}")
         if obj in ts.demo_placed:
             raise Conflict(f"the {obj} is already on the table; a placed object cannot be placed again")
-        _sync_demonstration(a, ts)
+        placements.sync_table(a, ts)
+        ts.demo_placed = [*ts.demo_placed, obj]
+        a.log("place", {"object": obj, "placed": list(ts.demo_placed)},
+              task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+        if placements.places_in_background(a.ctx):
+            placements.place_after_commit(a.ctx, a, ts, obj, step.kind, step.index)
+            return
         try:
-            labels = a.ctx.robot.place(robot_key(a.participant, ts.task_index), obj)
+            a.ctx.robot.place(robot_key(a.participant, ts.task_index), obj)
         except ValueError as exc:
             raise Conflict(f"the robot could not place the {obj}: {exc}") from exc
-        ts.demo_placed = [*ts.demo_placed, obj]
-        ts.demo_trace = [*ts.demo_trace, sorted(labels)]
-        a.log("place", {"object": obj, "labels": sorted(labels), "placed": list(ts.demo_placed)},
-              task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+        placements.store_labels(a, ts, step.kind, step.index)
 
     return act(ctx, token, "place", {"object": obj, **expect.__dict__}, key, run)
 
@@ -96,7 +88,9 @@ def finish_demonstration(ctx: Context, token: str, *, expect: Expect, key: str |
     """End the practice trial or demonstration (stopping early is allowed: Task 2 needs it)."""
     def run(a: Action) -> None:
         ts, state, step = _teaching(a, expect, ("practice", "demonstration"))
-        _sync_demonstration(a, ts)
+        placements.sync_table(a, ts)
+        if not placements.store_labels(a, ts, step.kind, step.index):
+            raise Conflict("the robot has not reported the table after every placement; try again")
         trace = [list(labels) for labels in ts.demo_trace]
         new_state = core.observe(state, step.kind, trace)
         a.log("demonstration", {"placed": list(ts.demo_placed), "trace": trace},

@@ -11,6 +11,7 @@ from ..robot import ViewingRobot
 from ..sim.recordings import RecordingId
 from . import executions
 from .context import Context
+from .placements import rebuild_table
 from .planning import position_of
 from .state import Action, Expect, act, apply_speed, current_task, participant_and_study, robot_key
 from .teaching import _teaching as teaching_step  # the same step check as the other teaching actions
@@ -42,10 +43,8 @@ def open_viewer(ctx: Context, token: str) -> int | None:
         apply_speed(ctx, key, study_row)
         on_click: Callable[[str], None] | None = None
         if kind in ("practice", "demonstration"):
-            if ts.demo_trace and robot.placed(key) != tuple(ts.demo_placed):
-                robot.reset(key)
-                for obj in ts.demo_placed:
-                    robot.place(key, obj)
+            if ts.demo_trace:
+                rebuild_table(ctx, key, ts.demo_placed)
             expect = Expect(ts.task_index, kind, index)
 
             def on_click(obj: str) -> None:

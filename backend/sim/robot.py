@@ -135,6 +135,14 @@ class MujocoRobot:
         with table.lock:
             return tuple(table.world.placed) if table.active else None
 
+    def trace(self, key: str) -> tuple[Labels, ...] | None:
+        """The labels after the last reset and after each placement since, as MuJoCo judged them (None as placed)."""
+        table = self._get(key)
+        if table is None:
+            return None
+        with table.lock:
+            return tuple(table.world.trace) if table.active else None
+
     def prepare(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> Future[ExecutionPlan]:
         """plan_execution in the background: the plan already made, the one under way, or a new one."""
         memo = (key, tuple(events), name, speed)

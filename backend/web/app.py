@@ -44,6 +44,7 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
         yield
         ctx.planner.shutdown()
+        ctx.placements.shutdown()  # placements under way end first: they use the robot and the database
         ctx.notifier.close()  # PgNotifier: its LISTEN and NOTIFY connections
         shutdown = getattr(ctx.robot, "shutdown", None)  # the MuJoCo robot stops its viser servers
         if shutdown is not None:

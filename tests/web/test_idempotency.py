@@ -92,4 +92,4 @@ def test_concurrent_retries_with_one_key_against_a_real_server(shared_server: Se
         state = http.get("/api/v1/me", headers=h).json()
     assert statuses == [200] * 8
     assert state["demonstration"]["placed"] == ["fork"]
-    assert state["n_events"] == 5  # joined, consent, instructions_read, task_started, one place
+    assert state["n_events"] == 6  # joined, consent, instructions_read, task_started, one place, its labels

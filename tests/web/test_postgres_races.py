@@ -48,6 +48,6 @@ def test_concurrent_retries_with_one_key_all_get_the_replayed_answer(postgres_ur
             assert all(a.json()["demonstration"]["placed"][-1] == obj for a in answers)
         with httpx.Client(base_url=server.url, timeout=30) as client:
             me = client.get("/api/v1/me", headers=h).json()
-        assert me["n_events"] == n_before + 3 and me["demonstration"]["placed"] == ["bowl", "fork", "knife"]
+        assert me["n_events"] == n_before + 6 and me["demonstration"]["placed"] == ["bowl", "fork", "knife"]
     finally:
         server.stop()
