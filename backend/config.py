@@ -40,6 +40,9 @@ class Settings(BaseSettings):
     data_dir: Path = Field(Path(DEFAULT_DATA_DIR),
         description="folder for files besides the database (robot recordings)")
     public_url: str | None = Field(None, description="base URL printed in links, e.g. https://study.example.org")
+    forwarded_allow_ips: str = Field("127.0.0.1", min_length=1, max_length=1000,
+        description="addresses of reverse proxies whose X-Forwarded-For/-Proto are believed (comma-separated, "
+                    "networks, or * where only the proxy can reach the app)")
     active_minutes: float = Field(60.0, gt=0,
         description="a participant counts as active this long after their last request")
     host: str = "127.0.0.1"

@@ -52,7 +52,9 @@ def cmd_serve(args: argparse.Namespace) -> None:
                      f"{app.state.dev_token}")
     print("\n".join(lines), flush=True)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, access_log=False,
-                timeout_graceful_shutdown=5, http=LimitedHttpToolsProtocol)
+                timeout_graceful_shutdown=5, http=LimitedHttpToolsProtocol,
+                # Behind the proxy the client's address (for the wrong-key limit) comes from X-Forwarded-For.
+                proxy_headers=True, forwarded_allow_ips=settings.forwarded_allow_ips)
 
 
 def _safe_url(url: str) -> str:

@@ -95,6 +95,12 @@ def test_a_participant_sticks_to_one_process_and_moves_when_it_dies(postgres_url
         assert finished.completion_code
         # Every answer came from the survivor (nginx may first try the dead one, then names both).
         assert all(address.endswith(f"127.0.0.1:{survivor.port}") for address in moved), moved
+
+        # Wrong experimenter keys count per client address: the proxy passes the one it saw, so a client that
+        # writes its own X-Forwarded-For does not escape the limit.
+        statuses = [httpx.get(f"{base}/api/v1/studies", timeout=10, headers={
+            "Authorization": "Bearer wrong-key", "X-Forwarded-For": f"203.0.113.{i}"}).status_code for i in range(21)]
+        assert statuses[:20] == [401] * 20 and statuses[20] == 429, statuses
     finally:
         proxy.terminate()
         proxy.wait(timeout=10)
