@@ -147,10 +147,11 @@ def database(url: str | None) -> Iterator[str]:
 
 @contextmanager
 def app_processes(k: int, url: str, folder: Path, logs: Path, token: str, robot: str,
-                  speed: float) -> Iterator[list[Any]]:
+                  speed: float, workers: int) -> Iterator[list[Any]]:
     """K `tableteach serve` processes on one database and one recording store; stopped on exit."""
     env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": token, "TABLETEACH_ROBOT": robot,
            "TABLETEACH_ROBOT_SPEED": str(speed), "TABLETEACH_DATA_DIR": str(folder / "data"),
+           "TABLETEACH_ROBOT_WORKERS": str(workers),
            # The trace robot takes as long per object as the MuJoCo arm, so people wait as long for it.
            "TABLETEACH_ROBOT_SECONDS_PER_OBJECT": str(MUJOCO_SECONDS_PER_OBJECT / speed)}
     env.pop("TABLETEACH_DEV_MODE", None)
@@ -382,6 +383,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="a PostgreSQL SQLAlchemy URL (default: a throwaway cluster, as the tests use)")
     parser.add_argument("--robot", choices=("mujoco", "trace"), default="mujoco",
                         help="trace: no physics or recordings (REST load only), 5.6 s per object like the arm")
+    parser.add_argument("--robot-workers", type=int, default=1,
+                        help="robot worker processes per app process (TABLETEACH_ROBOT_WORKERS)")
     parser.add_argument("--robot-speed", type=float, default=1.0, help="1 = real time (an action takes ~5.6 s)")
     parser.add_argument("--think", type=float, default=3.0, help="mean seconds a person takes before each action")
     parser.add_argument("--poll", type=float, default=1.0, help="seconds between the page's refreshes")
@@ -402,9 +405,10 @@ def main(argv: list[str] | None = None) -> int:
 
         upgrade_head(url)  # once, before the processes start (each would otherwise race to do it)
         db = Database(url)
-        print(f"starting {args.processes} app process(es) ({args.robot} robot, speed {args.robot_speed})", flush=True)
+        print(f"starting {args.processes} app process(es) ({args.robot} robot, speed {args.robot_speed}, "
+              f"{args.robot_workers} robot worker(s) each)", flush=True)
         procs = stack.enter_context(app_processes(args.processes, url, folder, logs, token, args.robot,
-                                                  args.robot_speed))
+                                                  args.robot_speed, args.robot_workers))
         urls = [p.url for p in procs]
         spec = {"name": "scale benchmark", "tasks": [{"key": "task1"}], "conditions": ["active"], "n_practice": 0,
                 "n_demonstrations": 2, "n_queries": 2, "n_tests": 1,
@@ -418,9 +422,10 @@ def main(argv: list[str] | None = None) -> int:
         cpu_before = [_process_tree_cpu(p.pid) for p in procs]
         db_cpu_before, xacts_before = db.cpu_seconds(), db.transactions()
         results = Results()
-        started = time.monotonic()
+        started, client_cpu_before = time.monotonic(), time.process_time()
         asyncio.run(run_participants(args.participants, urls, study["id"], args.think, args.poll, ramp, results))
         wall = time.monotonic() - started
+        client_cpu = time.process_time() - client_cpu_before
         cpu = [tuple(a - b for a, b in zip(_process_tree_cpu(p.pid), before, strict=True))
                for p, before in zip(procs, cpu_before, strict=True)]
         db_cpu_after, xacts = db.cpu_seconds(), db.transactions() - xacts_before
@@ -452,6 +457,8 @@ def main(argv: list[str] | None = None) -> int:
               f"({xacts / wall:.0f}/s)")
     else:
         print(f"database: {xacts} transactions ({xacts / wall:.0f}/s); CPU not measured (not on this machine)")
+    print(f"the simulated participants (this process): {client_cpu:.1f} CPU s ({100 * client_cpu / wall:.0f}% of a "
+          f"core); machine load average {os.getloadavg()[0]:.1f} at the end")
     min_fps = min((w["fps"] for w in results.watched), default=0.0)
     if results.watched:
         waits = np.array([w["wait"] for w in results.watched])
