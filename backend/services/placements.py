@@ -22,6 +22,7 @@ from concurrent.futures import Future
 from ..db import repository as repo
 from ..db.tables import TaskSessionRow
 from .context import Context
+from .planning import position_of
 from .state import Action, robot_key
 
 log = logging.getLogger(__name__)
@@ -70,14 +71,13 @@ def store_labels(a: Action, ts: TaskSessionRow, step_kind: str, step_index: int)
     return len(ts.demo_trace) == len(ts.demo_placed) + 1
 
 
-def place_after_commit(ctx: Context, a: Action, ts: TaskSessionRow, obj: str, step_kind: str,
-                       step_index: int) -> None:
+def place_after_commit(a: Action, ts: TaskSessionRow, obj: str) -> None:
     """Have the robot place obj once the request has committed, then store its labels in a transaction of their own.
 
     The queue holds only the physics: a request waiting for the table (sync_table) may hold the participant's
     row lock, which the storing transaction takes, so that runs on a thread of its own afterwards.
     """
-    key, token, task_index = robot_key(a.participant, ts.task_index), a.participant.token, ts.task_index
+    ctx, key, token, task_index = a.ctx, robot_key(a.participant, ts.task_index), a.participant.token, ts.task_index
 
     def physics() -> None:
         try:
@@ -89,14 +89,15 @@ def place_after_commit(ctx: Context, a: Action, ts: TaskSessionRow, obj: str, st
 
     def store(done: Future[None]) -> None:
         if done.exception() is None:
-            threading.Thread(target=_store_reported, args=(ctx, token, key, task_index, step_kind, step_index),
-                             name="store-labels", daemon=True).start()
+            threading.Thread(target=_store_reported, args=(ctx, token, key, task_index), name="store-labels",
+                             daemon=True).start()
 
     a.after_commit.append(lambda: ctx.placements.submit(key, physics).add_done_callback(store))
 
 
-def _store_reported(ctx: Context, token: str, key: str, task_index: int, step_kind: str, step_index: int) -> None:
-    """The background transaction: the labels of the placements the robot has finished, if still current."""
+def _store_reported(ctx: Context, token: str, key: str, task_index: int) -> None:
+    """The background transaction: the labels of the placements the robot has finished, if still current (for the
+    step the session is at now: a late thread may find the next demonstration under way, its table the robot's)."""
     try:
         with ctx.db.write() as s:
             repo.lock_participant(s, token=token)
@@ -110,6 +111,7 @@ def _store_reported(ctx: Context, token: str, key: str, task_index: int, step_ki
             if ts is None or not ts.demo_trace:
                 return
             a = Action(ctx, s, participant, study, None, None)
+            step_kind, step_index, _total = position_of(ts.state_json)
             before = len(ts.demo_trace)
             store_labels(a, ts, step_kind, step_index)
             if len(ts.demo_trace) == before:

@@ -73,7 +73,7 @@ def place_object(ctx: Context, token: str, *, obj: str, expect: Expect, key: str
         a.log("place", {"object": obj, "placed": list(ts.demo_placed)},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
         if placements.places_in_background(a.ctx):
-            placements.place_after_commit(a.ctx, a, ts, obj, step.kind, step.index)
+            placements.place_after_commit(a, ts, obj)
             return
         try:
             a.ctx.robot.place(robot_key(a.participant, ts.task_index), obj)
