@@ -29,7 +29,7 @@ from .recording import Recording
 from .recordings import RecordingId, SavedRecording, save_recording
 from .view import SceneView
 from .work_out import StudioSource, pretty, work_out_execution
-from .worker_pool import ExecutionWorkers
+from .worker_pool import ExecutionWorkers, WorkerFailed
 
 log = logging.getLogger(__name__)
 
@@ -195,9 +195,14 @@ class MujocoRobot:
 
     def _simulate(self, key: str, events: tuple[str, ...], rid: RecordingId,
                   memo: tuple[str, tuple[str, ...], str, float], rate: float) -> ExecutionPlan:
+        worked = None
         if self._workers is not None:
-            worked = self._workers.run(self.data_dir, table_seed(key), events, rid, rate)
-        else:
+            try:
+                worked = self._workers.run(self.data_dir, table_seed(key), events, rid, rate)
+            except WorkerFailed:  # e.g. no process can be started: slower here, but the participant carries on
+                log.warning("the robot workers failed on %s; working it out in the server process", rid.name,
+                            exc_info=True)
+        if worked is None:
             worked = work_out_execution(self._studio, self.data_dir, table_seed(key), events, rid, rate)
         with self._lock:
             if len(self._plans) >= 1024:

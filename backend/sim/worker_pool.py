@@ -18,6 +18,7 @@ from .recordings import RecordingId
 
 log = logging.getLogger(__name__)
 
+WORKER_COMMAND = (sys.executable, "-m", "tableteach.sim.execution_worker")
 REPLY_TIMEOUT_S = 120.0  # an execution takes about a second of CPU; a worker silent this long is stuck
 
 
@@ -28,15 +29,16 @@ class WorkerFailed(RuntimeError):
 class _Worker:
     """One worker process, started again if it has ended; used by one thread at a time."""
 
-    def __init__(self, index: int) -> None:
+    def __init__(self, index: int, command: tuple[str, ...]) -> None:
         self.index = index
+        self.command = command
         self.proc: subprocess.Popen[str] | None = None
 
     def ask(self, request: dict[str, Any]) -> dict[str, Any]:
         """Send one request and read its reply; WorkerFailed (and the process stopped) if that fails."""
         if self.proc is None or self.proc.poll() is not None:
-            self.proc = subprocess.Popen([sys.executable, "-m", "tableteach.sim.execution_worker"],
-                                         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, encoding="utf-8")
+            self.proc = subprocess.Popen(list(self.command), stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                                         encoding="utf-8")
         proc = self.proc
         assert proc.stdin is not None and proc.stdout is not None
         try:
@@ -48,10 +50,14 @@ class _Worker:
             self.stop()
             raise WorkerFailed(f"robot worker {self.index} could not be reached: {exc}") from exc
         if not line:
-            code = proc.poll()
+            what = f"gave no reply within {REPLY_TIMEOUT_S:.0f} s"
+            if ready:  # its output ended: the process is ending
+                try:
+                    what = f"ended with status {proc.wait(timeout=5)}"
+                except subprocess.TimeoutExpired:
+                    what = "closed its output"
             self.stop()
-            raise WorkerFailed(f"robot worker {self.index} " + (f"ended with status {code}" if code is not None
-                                                                 else f"gave no reply within {REPLY_TIMEOUT_S:.0f} s"))
+            raise WorkerFailed(f"robot worker {self.index} {what}")
         return json.loads(line)
 
     def stop(self) -> None:
@@ -74,12 +80,12 @@ class _Worker:
 class ExecutionWorkers:
     """`size` worker processes; run() blocks the calling thread until a worker has worked the execution out."""
 
-    def __init__(self, size: int) -> None:
+    def __init__(self, size: int, command: tuple[str, ...] = WORKER_COMMAND) -> None:
         if size < 1:
             raise ValueError(f"{size} robot workers: expected at least 1")
         self.size = size
         self._idle: queue.Queue[_Worker] = queue.Queue()
-        self._all = [_Worker(i) for i in range(size)]
+        self._all = [_Worker(i, command) for i in range(size)]
         for worker in self._all:
             self._idle.put(worker)
         self._closed = threading.Event()

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 import uuid
 
 import pytest
@@ -10,7 +11,7 @@ from tableteach.sim.motion_file import viser_path
 from tableteach.sim.recordings import RecordingId, load_recording
 from tableteach.sim.robot import MujocoRobot, table_seed
 from tableteach.sim.work_out import StudioSource, work_out_execution
-from tableteach.sim.worker_pool import ExecutionWorkers
+from tableteach.sim.worker_pool import ExecutionWorkers, WorkerFailed
 
 EVENTS = ("dinner_plate", "fork", "bowl")
 
@@ -74,3 +75,18 @@ def test_the_robot_hands_executions_to_its_workers_and_stops_them_at_shutdown(tm
     finally:
         robot.shutdown()
     assert all(p.poll() is not None for p in procs)
+
+
+def test_workers_that_cannot_run_leave_the_execution_to_the_server_process(tmp_path) -> None:
+    broken = ExecutionWorkers(1, command=(sys.executable, "-c", "import sys; sys.exit(3)"))
+    with pytest.raises(WorkerFailed, match="ended with status 3"):
+        broken.run(tmp_path, 1, ("bowl",), _rid(), 1.0)
+    robot = MujocoRobot(data_dir=tmp_path, workers=1)
+    robot._workers.close()
+    robot._workers = broken
+    try:
+        rid = _rid()
+        plan = robot.plan_execution("k", ("bowl",), rid.name)
+        assert plan.trace[-1] == frozenset({"bowl"}) and viser_path(tmp_path, rid).exists()
+    finally:
+        robot.shutdown()
