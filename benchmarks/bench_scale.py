@@ -543,7 +543,8 @@ def main(argv: list[str] | None = None) -> int:
     if results.watched:
         waits = np.array([w["wait"] for w in results.watched])
         transfers = np.array([w["transfer"] for w in results.watched])
-        print(f"watched {len(results.watched)} executions: recording fps min {min_fps:.1f}, largest frame gap "
+        recording_fps = min(w["fps"] for w in results.watched)
+        print(f"watched {len(results.watched)} executions: recording fps min {recording_fps:.1f}, largest frame gap "
               f"{1000 * max(w['max_gap'] for w in results.watched):.0f} ms, transfer p50 "
               f"{1000 * np.percentile(transfers, 50):.0f} ms max {1000 * transfers.max():.0f} ms; from the start "
               f"click to the recording ready (the motion's clock starts then): p50 "
