@@ -66,7 +66,8 @@ def plan(ctx: Context, key: str, rid: RecordingId, events: list[str], speed: flo
 
 
 def works_in_background(ctx: Context) -> bool:
-    """Whether the robot works executions out in the background (the MuJoCo robot) rather than at once."""
+    """Whether the robot takes time (the MuJoCo robot): it works executions out, and places a demonstration's
+    objects, in the background rather than at once (see services.placements)."""
     return getattr(ctx.robot, "prepare", None) is not None
 
 

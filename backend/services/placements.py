@@ -30,11 +30,6 @@ log = logging.getLogger(__name__)
 WAIT_SECONDS = 30.0  # a placement's physics takes about 0.1 s; one still running after this has gone wrong
 
 
-def places_in_background(ctx: Context) -> bool:
-    """Whether the robot takes time to place an object (the MuJoCo robot) rather than placing it at once."""
-    return getattr(ctx.robot, "prepare", None) is not None
-
-
 def sync_table(a: Action, ts: TaskSessionRow) -> None:
     """Make the robot's table match the stored placements; the first one of a demonstration clears it."""
     key = robot_key(a.participant, ts.task_index)
