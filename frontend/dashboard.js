@@ -477,8 +477,8 @@ async function participantView(studyId, participantId) {
 
 function eventDetails(e) {
   const pl = e.payload;
-  if (e.kind === "place") return `placed the ${pretty(pl.object)}`;
-  if (e.kind === "placed") return `in place: ${(pl.labels ?? []).map(pretty).join(", ") || "nothing"}`;
+  if (e.kind === "place") return `chose the ${pretty(pl.object)}`;
+  if (e.kind === "placed") return `robot placed the ${pretty(pl.object)}; in place: ${(pl.labels ?? []).map(pretty).join(", ") || "nothing"}`;
   if (e.kind === "assessment") return pl.acceptable === null ? "no verdict" : pl.acceptable ? "acceptable" : "unacceptable";
   if (e.kind === "execution_started") return `robot: ${(pl.events ?? []).map(pretty).join(", ")}`;
   if (e.kind === "task_started") return `${pl.task}, ${pl.protocol}, seed ${pl.seed}`;
