@@ -100,6 +100,10 @@ class ViewingRobot(Protocol):
         """What the robot at this table is doing, or None if the robot has no such table."""
         ...
 
+    def has_view(self, key: str) -> bool:
+        """Whether the table's view is running (open_view started it and it has not been stopped)."""
+        ...
+
 
 @dataclass
 class _Table:

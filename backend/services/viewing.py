@@ -20,6 +20,25 @@ from .teaching import place_object
 log = logging.getLogger(__name__)
 
 
+def prepare_viewer(ctx: Context, token: str) -> bool:
+    """Whether the participant's current step has a 3D view (a task under way and a robot that shows one).
+
+    A view already running is readied for this step here (its table, and clicks for a demonstration); a new
+    one starts when the page's viewer connects its websocket (open_viewer), so this REST call never waits
+    for a viser server to start.
+    """
+    robot = ctx.robot
+    with ctx.db.read() as s:
+        participant, _study = participant_and_study(s, token)  # an unknown token is refused whatever the robot
+        ts = current_task(s, participant)
+        if not isinstance(robot, ViewingRobot) or ts is None:
+            return False
+        key = robot_key(participant, ts.task_index)
+    if robot.has_view(key):
+        return open_viewer(ctx, token) is not None
+    return True
+
+
 def open_viewer(ctx: Context, token: str) -> int | None:
     """The local port of the participant's 3D view for the current step, or None (no task, or a robot without view).
 

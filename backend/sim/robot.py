@@ -267,6 +267,12 @@ class MujocoRobot:
         self._ensure_reaper()
         return port
 
+    def has_view(self, key: str) -> bool:
+        """Whether the table's viser view is running."""
+        with self._lock:
+            table = self._tables.get(key)  # looking is not using: the idle clock keeps running
+        return table is not None and table.view is not None
+
     def activity(self, key: str) -> RobotActivity | None:
         """Whether the robot moves, its caption, and how many browsers watch."""
         table = self._get(key)

@@ -280,12 +280,13 @@ def _event(counter: int, robot: dict | None) -> str:
 
 @router.post("/api/v1/me/view", response_model=ViewOut, responses=error_responses(401))
 def open_view(ctx: ContextDep, token: TokenDep) -> dict:
-    """Prepare the participant's 3D view for the current step; the page embeds `url` when available."""
+    """The participant's 3D view for the current step; the page embeds `url` when available (a live view starts
+    when the viewer page connects its websocket, not here)."""
     recorded = services.current_motion(ctx, token)  # a robot execution: the browser plays its recording
     if recorded is not None:
         return {"available": True, "url": playback_url(token, recorded.recording, recorded.replays)}
-    port = services.open_viewer(ctx, token)
-    return {"available": port is not None, "url": viewer_path(token) if port is not None else None}
+    available = services.prepare_viewer(ctx, token)
+    return {"available": available, "url": viewer_path(token) if available else None}
 
 
 @router.post("/api/v1/me/execution/replay", response_model=ParticipantState,
