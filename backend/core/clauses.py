@@ -43,7 +43,8 @@ class Clause:
         return to_text(self.formula())
 
 
-def _humanize(name: str) -> str:
+def humanize(name: str) -> str:
+    """An object or proposition name as people read it: dinner_plate -> dinner plate."""
     return name.replace("_", " ")
 
 
@@ -220,15 +221,16 @@ class ClauseSpace:
         required = [c.first for c in clauses if c.kind == "F"]
         forbidden = [c.first for c in clauses if c.kind == "G"]
         if required:
-            phrases.append(f"{self.verb} " + _join([f"the {_humanize(p)}" for p in required]))
+            phrases.append(f"{self.verb} " + join_words([f"the {humanize(p)}" for p in required]))
         for c in orders:
-            phrases.append(f"{self.verb} the {_humanize(c.first)} before the {_humanize(c.second or '')}")
+            phrases.append(f"{self.verb} the {humanize(c.first)} before the {humanize(c.second or '')}")
         if forbidden:
-            phrases.append(f"never {self.verb} " + _join([f"the {_humanize(p)}" for p in forbidden]))
+            phrases.append(f"never {self.verb} " + join_words([f"the {humanize(p)}" for p in forbidden]))
         return "; ".join(phrases)
 
 
-def _join(items: Sequence[str]) -> str:
+def join_words(items: Sequence[str]) -> str:
+    """'a', 'a and b', 'a, b and c'."""
     if len(items) <= 1:
         return "".join(items)
     return ", ".join(items[:-1]) + " and " + items[-1]

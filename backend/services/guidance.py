@@ -7,7 +7,7 @@ import math
 from typing import Any
 
 from ..core import session as core
-from ..core.clauses import Clause
+from ..core.clauses import Clause, humanize, join_words
 from ..core.domain import get_domain
 
 # One placement by the MuJoCo robot at 1x takes about 5.6 s of motion (a 5-object execution about 28 s).
@@ -64,16 +64,6 @@ def progress(configs: list[core.SessionConfig], stage: str, task_index: int, ste
             else max(1, math.ceil(left / 60))}
 
 
-def _humanize(name: str) -> str:
-    return name.replace("_", " ")
-
-
-def _join(items: list[str]) -> str:
-    if len(items) <= 1:
-        return "".join(items)
-    return ", ".join(items[:-1]) + " and " + items[-1]
-
-
 def _chains(orders: list[tuple[str, str]]) -> list[list[str]]:
     """Merge "a before b" pairs into chains a, b, c where the pairs allow (after dropping implied pairs)."""
     pairs = set(orders)
@@ -112,13 +102,13 @@ def lay_summary(clauses: list[Clause]) -> str:
               if c.kind == "U" and c.first not in forbidden and c.second not in forbidden]
     sentences = []
     if required:
-        sentences.append("Place " + _join([f"the {_humanize(p)}" for p in required]) + ".")
+        sentences.append("Place " + join_words([f"the {humanize(p)}" for p in required]) + ".")
     for chain in _chains(orders):
-        names = [f"the {_humanize(p)}" for p in chain]
+        names = [f"the {humanize(p)}" for p in chain]
         if len(chain) == 2:
             sentences.append(f"Place {names[0]} before {names[1]}.")
         else:
             sentences.append(f"Place {', then '.join(names)}, in this order.")
     if forbidden:
-        sentences.append("Never place " + _join([f"the {_humanize(p)}" for p in forbidden]) + ".")
+        sentences.append("Never place " + join_words([f"the {humanize(p)}" for p in forbidden]) + ".")
     return " ".join(sentences) if sentences else "Any way of setting the table is fine."

@@ -21,6 +21,7 @@ from collections.abc import Callable, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 
+from ..core.clauses import humanize
 from ..robot import ExecutionPlan, RobotActivity
 from .motion_file import viser_path
 from .physics import MujocoWorld
@@ -28,7 +29,7 @@ from .playback import play
 from .recording import Recording
 from .recordings import RecordingId, SavedRecording, save_recording
 from .view import SceneView
-from .work_out import StudioSource, pretty, work_out_execution
+from .work_out import StudioSource, work_out_execution
 from .worker_pool import ExecutionWorkers, WorkerFailed
 
 log = logging.getLogger(__name__)
@@ -118,7 +119,7 @@ class MujocoRobot:
                 labels = table.world.place(obj)  # PlacementError (a ValueError) for an unknown or moved object
                 table.action_ends.append(float(table.world.data.time))
                 if table.watchers > 0:
-                    table.pending.append((f"The robot is placing the {pretty(obj)}",
+                    table.pending.append((f"The robot is placing the {humanize(obj)}",
                                           table.world.recording.since(start)))
                 else:
                     self._show_still(table)
@@ -157,7 +158,7 @@ class MujocoRobot:
             if self._closing.is_set():
                 raise RuntimeError("the robot is shutting down: expected no new executions")
             if self._prep_pool is None:
-                self._prep_pool = ThreadPoolExecutor(max_workers=max(1, self._workers.size if self._workers else 1),
+                self._prep_pool = ThreadPoolExecutor(max_workers=self._workers.size if self._workers else 1,
                                                      thread_name_prefix="robot-prepare")
             future = self._preparing[memo] = self._prep_pool.submit(self._work_out, key, tuple(events), name, speed)
             return future
@@ -430,7 +431,7 @@ class MujocoRobot:
                 return
             table.clicking = True
             if table.player is None:
-                table.caption = f"The robot is placing the {pretty(obj)}"
+                table.caption = f"The robot is placing the {humanize(obj)}"
         self._refresh(table)
         self._changed(table)
         try:

@@ -10,16 +10,12 @@ import threading
 from collections.abc import Sequence
 from pathlib import Path
 
+from ..core.clauses import humanize
 from ..robot import ExecutionPlan
 from .motion_file import Studio, viser_path, write_atomically
 from .physics import MujocoWorld
 from .recordings import RecordingId, SavedRecording, save_recording
 from .world import check_sequence
-
-
-def pretty(obj: str) -> str:
-    """An object's name as shown to people."""
-    return obj.replace("_", " ")
 
 
 def work_out_execution(studio_of: StudioSource, data_dir: Path, seed: int, events: Sequence[str],
@@ -37,7 +33,7 @@ def work_out_execution(studio_of: StudioSource, data_dir: Path, seed: int, event
             ends.append(float(world.data.time))
         recording = world.recording
         save_recording(data_dir, SavedRecording(rid, recording, tuple(world.placed), tuple(world.trace), tuple(ends)))
-        captions = [(t0, f"The robot is placing the {pretty(obj)} ({i + 1} of {len(events)})")
+        captions = [(t0, f"The robot is placing the {humanize(obj)} ({i + 1} of {len(events)})")
                     for i, (t0, obj) in enumerate(zip(starts, events, strict=True))]
         write_atomically(viser_path(data_dir, rid), studio_of(world).render(recording, captions, speed=rate))
         return ExecutionPlan(events, tuple(world.trace), tuple((end - start) / rate for end in ends), viewable=True)
