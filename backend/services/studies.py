@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import re
 import secrets
+from collections.abc import Iterator
 from typing import Any
 
 from ..core import session as core
@@ -149,16 +150,24 @@ def _check_tasks(tasks: Any, problems: _Problems) -> list[dict[str, Any]]:
     return out
 
 
-def _check_questionnaire(items: Any, problems: _Problems) -> list[dict[str, Any]]:
-    """Items need a unique id, a text and a kind; attention checks also their expected answer (1-5)."""
+def _identified_items(items: Any, field: str, problems: _Problems) -> Iterator[tuple[int, dict[str, Any]]]:
+    """The dict items of a list field with their positions; each needs an id not used by an earlier one."""
     seen: set[str] = set()
-    out = []
     for i, item in enumerate(items if isinstance(items, list) else []):
         if not isinstance(item, dict):
             continue
-        item_id, kind = item.get("id"), item.get("kind")
+        item_id = item.get("id")
         if not isinstance(item_id, str) or not item_id or item_id in seen:
-            problems.add(f"questionnaire.{i}.id", f"must be a non-empty id not used before, got {item_id!r}")
+            problems.add(f"{field}.{i}.id", f"must be a non-empty id not used before, got {item_id!r}")
+        seen.add(str(item_id))
+        yield i, item
+
+
+def _check_questionnaire(items: Any, problems: _Problems) -> list[dict[str, Any]]:
+    """Items need a unique id, a text and a kind; attention checks also their expected answer (1-5)."""
+    out = []
+    for i, item in _identified_items(items, "questionnaire", problems):
+        item_id, kind = item.get("id"), item.get("kind")
         if kind not in ITEM_KINDS:
             problems.add(f"questionnaire.{i}.kind", f"is {kind!r}; expected one of {', '.join(ITEM_KINDS)}")
             continue
@@ -167,7 +176,6 @@ def _check_questionnaire(items: Any, problems: _Problems) -> list[dict[str, Any]
                                     or not 1 <= expected <= 5):
             problems.add(f"questionnaire.{i}.expected",
                          f"an attention check needs the expected answer, a whole number from 1 to 5, got {expected!r}")
-        seen.add(str(item_id))
         entry = {"id": item_id, "text": str(item.get("text", "")), "kind": kind,
                  "required": True if kind == "attention" else bool(item.get("required", True))}
         if kind == "attention":
@@ -178,15 +186,9 @@ def _check_questionnaire(items: Any, problems: _Problems) -> list[dict[str, Any]
 
 def _check_quiz(items: Any, problems: _Problems) -> list[dict[str, Any]]:
     """Comprehension quiz items: a unique id, a question, at least two options and the index of the correct one."""
-    seen: set[str] = set()
     out = []
-    for i, item in enumerate(items if isinstance(items, list) else []):
-        if not isinstance(item, dict):
-            continue
+    for i, item in _identified_items(items, "quiz", problems):
         item_id, options, correct = item.get("id"), item.get("options"), item.get("correct")
-        if not isinstance(item_id, str) or not item_id or item_id in seen:
-            problems.add(f"quiz.{i}.id", f"must be a non-empty id not used before, got {item_id!r}")
-        seen.add(str(item_id))
         if not isinstance(options, list) or len(options) < 2 or not all(isinstance(o, str) and o for o in options):
             problems.add(f"quiz.{i}.options", "expected at least two non-empty answer options")
             continue
