@@ -334,3 +334,16 @@ def test_bad_input_to_the_new_endpoints_names_the_field(app_client) -> None:
     assert r.status_code == 422 and "answers.who" in r.json()["detail"]
     r = app_client.post("/api/v1/me/quiz", json={"answers": {}}, headers=bearer(token))
     assert r.status_code == 409 and "quiz stage" in r.json()["detail"]
+
+
+def test_questionnaire_and_quiz_items_need_ids_not_used_before(app_client) -> None:
+    from .conftest import study_spec
+
+    spec = study_spec(["active"])
+    spec["questionnaire"] = [{"id": "q", "text": "One", "kind": "likert5"}, {"id": "q", "text": "Two", "kind": "text"},
+                             {"text": "No id", "kind": "likert5"}]
+    spec["quiz"] = [{"id": "z", "text": "A?", "options": ["x", "y"], "correct": 0},
+                    {"id": "z", "text": "B?", "options": ["x", "y"], "correct": 1}]
+    r = app_client.post("/api/v1/studies", json=spec, headers=EXP)
+    assert r.status_code == 422
+    assert {e["field"] for e in r.json()["errors"]} == {"questionnaire.1.id", "questionnaire.2.id", "quiz.1.id"}
