@@ -35,8 +35,8 @@ class Settings(BaseSettings):
         description="MuJoCo robot: playback speed of its motion (1 = real time)")
     robot_workers: int = Field(1, ge=0, le=64,
         description="MuJoCo robot: worker processes that work its executions out (0: inside the server process)")
-    viewer_idle_minutes: float = Field(10.0, gt=0.0,
-        description="stop a participant's 3D view this long after its last use")
+    timeout_sweep_seconds: float = Field(15.0, gt=0.0, le=3600.0,
+        description="how often the runtime screens out participants idle past their study's time-out")
     data_dir: Path = Field(Path(DEFAULT_DATA_DIR),
         description="folder for files besides the database (robot recordings)")
     public_url: str | None = Field(None, description="base URL printed in links, e.g. https://study.example.org")

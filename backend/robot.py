@@ -4,8 +4,8 @@ The participant places objects one at a time during a demonstration (each placem
 labels); the robot works out a query or test execution whole (plan_execution: its trace and its clock).
 The server records the labels and traces the robot reports, never ones it recomputes itself. Tables
 are keyed by a string the server chooses (one per participant and task). The MuJoCo robot
-(tableteach.sim.robot) implements the same protocol plus ViewingRobot (a 3D view per table); this seam
-never imports it: the app is composed with one robot or the other in tableteach.web.robots.
+(tableteach.sim.robot) implements the same protocol with a 3D view; this seam never imports it: the app is
+composed with one robot or the other in tableteach.web.robots, the only place that imports tableteach.sim.
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Protocol, runtime_checkable
+from typing import Protocol
 
 from .core.domain import Domain, get_domain
 
@@ -35,8 +35,47 @@ class ExecutionPlan:
     viewable: bool = False
 
 
+@dataclass(frozen=True)
+class RobotActivity:
+    """What a table's robot is doing right now, for the participant page's status line."""
+
+    moving: bool
+    caption: str  # e.g. "The robot is placing the bowl (2 of 4)"; empty when idle
+    watchers: int  # browsers showing the table's 3D view
+
+
+@dataclass(frozen=True)
+class ViewAddress:
+    """Where the app's websocket proxy connects one browser to a table's 3D view: a local port and a path."""
+
+    port: int
+    path: str
+
+
 class Robot(Protocol):
-    """What the server asks of a robot (the trace robot below, or the MuJoCo scene)."""
+    """Everything the server asks of a robot (the trace robot below, or the MuJoCo scene in tableteach.sim).
+
+    Tables are keyed by a string the server chooses ("<participant id>/<task index>"). Calls may come from
+    any thread of the runtime; implementations are thread-safe.
+    """
+
+    works_in_background: bool
+    """True for a robot that takes time (physics): the server places objects and works executions out in
+    background jobs (services.background) instead of inside the request."""
+
+    shows_view: bool
+    """True for a robot with a 3D view for the browser (open_view, and recordings it plays)."""
+
+    on_change: Callable[[str], None] | None
+    """Told a table's key whenever what the robot shows of it changes (a motion starts or ends)."""
+
+    def start(self) -> None:
+        """Start the robot's own threads, if any (the runtime calls it once at start-up)."""
+        ...
+
+    def shutdown(self) -> None:
+        """Stop everything the robot runs (threads, views, worker processes); the runtime calls it at the end."""
+        ...
 
     def reset(self, key: str) -> Labels:
         """Clear the table for a new demonstration; the initial labels."""
@@ -64,7 +103,7 @@ class Robot(Protocol):
         ...
 
     def release(self, key: str) -> None:
-        """Forget the table (the participant has moved on)."""
+        """Forget the table's contents (the participant has moved on to another step)."""
         ...
 
     def save_recording(self, key: str, name: str) -> None:
@@ -78,30 +117,29 @@ class Robot(Protocol):
         """The participant is done with this table: free it and anything shown of it."""
         ...
 
+    def set_speed(self, key: str, speed: float) -> None:
+        """Show this table's motions `speed` times faster (the study's robot_speed)."""
+        ...
 
-@dataclass(frozen=True)
-class RobotActivity:
-    """What a table's robot is doing right now, for the participant page's status line."""
+    def open_view(self, key: str, on_click: Callable[[str], None] | None) -> ViewAddress | None:
+        """Where a browser connects to the table's 3D view (None without views); on_click gets clicked objects
+        on a library thread and must only queue them."""
+        ...
 
-    moving: bool
-    caption: str  # e.g. "The robot is placing the bowl (2 of 4)"; empty when idle
-    watchers: int  # browsers showing the table's 3D view
+    def click_done(self, key: str) -> None:
+        """A click handed to on_click has been carried out or refused: the table takes clicks again."""
+        ...
 
-
-@runtime_checkable
-class ViewingRobot(Protocol):
-    """A robot that can show a table in the browser (the MuJoCo one): one viser server per table."""
-
-    def open_view(self, key: str, on_click: Callable[[str], None] | None) -> int:
-        """Start the table's view if needed and return its local port; clicks on waiting objects call on_click."""
+    def has_view(self, key: str) -> bool:
+        """Whether a browser shows the table's 3D view now."""
         ...
 
     def activity(self, key: str) -> RobotActivity | None:
         """What the robot at this table is doing, or None if the robot has no such table."""
         ...
 
-    def has_view(self, key: str) -> bool:
-        """Whether the table's view is running (open_view started it and it has not been stopped)."""
+    def view_count(self) -> int:
+        """Browsers connected to any table's 3D view in this process."""
         ...
 
 
@@ -114,7 +152,11 @@ class TraceRobot:
     """A robot without physics: labels are the placed objects (domain.trace_of); executions take
     seconds_per_object per action on their stored clock."""
 
+    works_in_background = False
+    shows_view = False
+
     def __init__(self, task: str = "dinner", seconds_per_object: float = 0.0) -> None:
+        self.on_change: Callable[[str], None] | None = None
         self.domain: Domain = get_domain(task)
         self.seconds_per_object = seconds_per_object
         self._tables: dict[str, _Table] = {}
@@ -168,3 +210,33 @@ class TraceRobot:
     def close(self, key: str) -> None:
         """Forget the table."""
         self.release(key)
+
+    def start(self) -> None:
+        """No threads to start."""
+
+    def shutdown(self) -> None:
+        """Forget every table."""
+        with self._lock:
+            self._tables.clear()
+
+    def set_speed(self, key: str, speed: float) -> None:
+        """Nothing is shown, so nothing plays faster."""
+
+    def open_view(self, key: str, on_click: Callable[[str], None] | None) -> ViewAddress | None:
+        """No 3D view."""
+        return None
+
+    def click_done(self, key: str) -> None:
+        """No view, so no clicks."""
+
+    def has_view(self, key: str) -> bool:
+        """No 3D view."""
+        return False
+
+    def activity(self, key: str) -> RobotActivity | None:
+        """Never moving: executions run on their stored clock (services.executions)."""
+        return None
+
+    def view_count(self) -> int:
+        """No 3D views."""
+        return 0

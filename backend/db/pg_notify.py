@@ -16,7 +16,7 @@ import time
 import psycopg
 from sqlalchemy.engine import make_url
 
-from ..services.notify import LocalNotifier
+from ..notices import LocalNotifier
 
 log = logging.getLogger(__name__)
 CHANNEL = "tableteach_state"

@@ -114,6 +114,25 @@ def lock_participant(session: Session, *, token: str) -> None:
         session.execute(_LOCK_PARTICIPANT, {"token": token})
 
 
+_LOCK_PARTICIPANT_ID = (select(ParticipantRow.id).where(ParticipantRow.id == bindparam("participant_id"))
+                        .with_for_update())
+
+
+def lock_participant_id(session: Session, *, participant_id: int) -> None:
+    """lock_participant by the participant's number (background work knows the number, not the token)."""
+    if session.get_bind().dialect.name != "sqlite":
+        session.execute(_LOCK_PARTICIPANT_ID, {"participant_id": participant_id})
+
+
+def get_participant_with_study(session: Session, *, participant_id: int) -> tuple[ParticipantRow, StudyRow] | None:
+    """A participant by number with their study (None if there is no such participant)."""
+    participant = session.get(ParticipantRow, participant_id, populate_existing=True)
+    if participant is None:
+        return None
+    study = session.get(StudyRow, participant.study_id)
+    return None if study is None else (participant, study)
+
+
 def get_participant_and_study(session: Session, *, token: str) -> tuple[ParticipantRow, StudyRow] | None:
     """The participant whose secret token this is, with their study (one query)."""
     found = get_participant_for_request(session, token=token, client_event_id=None)

@@ -14,9 +14,10 @@ from ..db import repository as repo
 from ..db.engine import Database
 from ..errors import Conflict
 from ..robot import Robot, TraceRobot
+from ..recording_store import FileRecordingStore, RecordingStore
 from .notify import LocalNotifier, make_notifier, participant_of_key
-from .placement_queue import PlacementQueue
 from .planning import Planner
+from .runtime import Runtime
 
 
 @lru_cache(maxsize=1)
@@ -58,10 +59,17 @@ class TabLeases:
                 del self._holders[participant_id]
 
 
+def default_runtime() -> Runtime:
+    """A runtime with every background job's handler (services.background)."""
+    from .background import HANDLERS  # background builds on the actions, which build on this module
+
+    return Runtime(HANDLERS)
+
+
 @dataclass
 class Context:
-    """What every action needs: the database, the robot and the settings (plus tab leases, the planner, the page
-    notifier and the placements waiting for the robot)."""
+    """What every action needs: the database, the robot, the recording store and the settings, plus tab leases,
+    the planner's cache, the page notifier and the runtime that owns every thread (services.runtime)."""
 
     db: Database
     robot: Robot
@@ -69,17 +77,36 @@ class Context:
     tabs: TabLeases = field(default_factory=TabLeases)
     planner: Planner = field(default_factory=Planner)
     notifier: LocalNotifier = field(default_factory=LocalNotifier)
-    placements: PlacementQueue = field(default_factory=PlacementQueue)
+    runtime: Runtime = field(default_factory=default_runtime)
+    recordings: RecordingStore | None = None
 
     def __post_init__(self) -> None:
-        # A robot that reports its own changes (motion starts, next action, stops) tells the participant's page.
-        if hasattr(self.robot, "on_change"):
-            self.robot.on_change = self._robot_changed  # type: ignore[attr-defined]
+        if self.recordings is None:
+            self.recordings = FileRecordingStore(self.settings.data_dir)
+        # The robot reports its own changes (motion starts and ends): the participant's page is told.
+        self.robot.on_change = self._robot_changed
 
     def _robot_changed(self, key: str) -> None:
         participant_id = participant_of_key(key)
         if participant_id is not None:
             self.notifier.publish(participant_id)
+
+    @property
+    def store(self) -> RecordingStore:
+        """The recording store (set in __post_init__)."""
+        assert self.recordings is not None
+        return self.recordings
+
+    def start(self) -> None:
+        """Start the runtime's threads (the app's start-up)."""
+        self.runtime.sweep_seconds = self.settings.timeout_sweep_seconds
+        self.runtime.start(self)
+
+    def close(self) -> None:
+        """Stop the runtime (handlers under way end; unfinished jobs stay stored), the notifier and the database."""
+        self.runtime.stop()
+        self.notifier.close()
+        self.db.dispose()
 
     @staticmethod
     def from_settings(settings: Settings, robot: Robot | None = None) -> "Context":

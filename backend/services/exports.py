@@ -12,7 +12,6 @@ from ..db import repository as repo
 from ..db.tables import StudyRow
 from ..errors import NotFound
 from .context import Context, aware, iso
-from .lifecycle import expire_timeouts
 from .monitoring import belief_view
 from .planning import session_of
 from .state import task_sequence
@@ -70,7 +69,6 @@ def export_rows(ctx: Context, study_id: str, name: str, *, include_pilot: bool =
         raise NotFound(f"no export named {name!r}; expected one of {', '.join(EXPORTS)}")
     with ctx.db.read() as s:
         study_row(s, study_id)
-    expire_timeouts(ctx, study_id)
     return _export_rows(ctx, study_id, name, include_pilot)
 
 

@@ -16,7 +16,6 @@ from typing import Any
 from ..db import repository as repo
 from ..db.tables import ParticipantRow, utcnow
 from ..errors import Conflict, NotFound
-from ..sim import recordings
 from .context import Context, commit, iso
 from .state import Action, act, end_participation, mark_timed_out, robot_key
 from .studies import study_row
@@ -28,7 +27,7 @@ log = logging.getLogger(__name__)
 def delete_recordings_of(ctx: Context, participant_uid: str) -> None:
     """Delete one participant's robot recordings; a failure is logged (the database is already erased)."""
     try:
-        recordings.delete_recordings(ctx.settings.data_dir, participant_uid)
+        ctx.store.delete_participant(participant_uid)
     except OSError:
         log.exception("could not delete the recordings of participant uid %s", participant_uid)
 

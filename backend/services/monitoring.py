@@ -13,7 +13,6 @@ from ..db import repository as repo
 from ..db.tables import ParticipantRow, utcnow
 from ..errors import NotFound
 from .context import Context, aware, iso
-from .lifecycle import expire_timeouts
 from .planning import session_of
 from .studies import study_row
 
@@ -65,7 +64,6 @@ def list_participants(ctx: Context, study_id: str) -> list[dict[str, Any]]:
     """A study's participants with their stage, current phase, live status and last activity."""
     with ctx.db.read() as s:
         study_row(s, study_id)
-    expire_timeouts(ctx, study_id)
     now = utcnow()
     with ctx.db.read() as s:
         study_row(s, study_id)

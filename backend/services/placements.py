@@ -1,118 +1,94 @@
 """A demonstration's placements: the participant's choice is stored at once, the robot's report comes after.
 
-`POST /me/placements` stores the object (event `place`) and answers. The robot then places it: the MuJoCo
-arm needs about 80 ms of physics per placement, which inside the request made placements the slowest action
-under load. When the robot is done, a second transaction stores the table's labels (event `placed`) and
-tells the page. Until then the state's `demonstration.settled` is false, and the page keeps its buttons
-off (it does so anyway while the arm's motion is shown, about 5 s).
+`POST /me/placements` stores the object (event `place`) and, for a robot that takes time (the MuJoCo arm
+needs about 80 ms of physics per placement), a `settle` job in the same transaction, and answers. The
+runtime then has the robot place every stored object it has not placed yet (rebuilding its table from the
+stored placements if it lost it: a restart, another process) and stores the labels it reports (event
+`placed`), retrying until that succeeds (services.background). Until then the state's
+`demonstration.settled` is false and the page keeps its buttons off. Finishing a demonstration waits for
+the labels, outside any transaction.
 
-A robot that places at once (the trace robot) reports in the request itself, so its `place` and `placed`
-events share one transaction. Placements of one table are simulated in the order they were stored: a
-request placing the next object first waits for the previous one (a scripted teacher placing back to
-back), and finishing a demonstration waits for all of them, so its trace is always complete. A robot
-that has lost the table (a restart, another process) rebuilds it from the stored placements.
+A robot that places at once (the trace robot, no physics) reports in the request itself, so its `place` and
+`placed` events share one transaction.
 """
 
 from __future__ import annotations
 
-import logging
-import threading
-from concurrent.futures import Future
+import time
+from collections.abc import Sequence
 
-from ..db import repository as repo
 from ..db.tables import TaskSessionRow
+from ..robot import Labels, Robot
 from .context import Context
-from .planning import position_of
-from .state import Action, robot_key
+from .runtime import SETTLE
+from .state import Action, participant_and_study, current_task, robot_key
 
-log = logging.getLogger(__name__)
-
-WAIT_SECONDS = 30.0  # a placement's physics takes about 0.1 s; one still running after this has gone wrong
-
-
-def sync_table(a: Action, ts: TaskSessionRow) -> None:
-    """Make the robot's table match the stored placements; the first one of a demonstration clears it."""
-    key = robot_key(a.participant, ts.task_index)
-    if not ts.demo_trace:
-        a.ctx.placements.wait(key, WAIT_SECONDS)
-        ts.demo_trace = [sorted(a.ctx.robot.reset(key))]
-    else:
-        rebuild_table(a.ctx, key, ts.demo_placed)
+SETTLE_WAIT_SECONDS = 30.0  # a placement's physics takes about 0.1 s; the runtime retries a failed store
+SETTLE_POLL_SECONDS = 0.05
 
 
-def rebuild_table(ctx: Context, key: str, placed: list[str]) -> None:
-    """Wait for the table's placements under way; if the robot's table still differs (it was lost), rebuild it."""
-    ctx.placements.wait(key, WAIT_SECONDS)
-    if ctx.robot.placed(key) != tuple(placed):
-        ctx.robot.reset(key)
-        for obj in placed:
-            ctx.robot.place(key, obj)
+def settled(ts: TaskSessionRow) -> bool:
+    """Whether the robot has reported the table after every stored placement."""
+    return not ts.demo_placed or len(ts.demo_trace) >= len(ts.demo_placed) + 1
 
 
-def store_labels(a: Action, ts: TaskSessionRow, step_kind: str, step_index: int) -> bool:
-    """Store the labels the robot reported for placements it has finished (one `placed` event each); True once
-    every stored placement has its labels."""
-    key = robot_key(a.participant, ts.task_index)
-    placed, trace = a.ctx.robot.placed(key), a.ctx.robot.trace(key)
-    if placed is None or trace is None or tuple(placed) != tuple(ts.demo_placed[: len(placed)]):
-        return len(ts.demo_trace) == len(ts.demo_placed) + 1  # a lost table: the next request rebuilds it
-    known, done = len(ts.demo_trace) - 1, min(len(placed), len(trace) - 1)
-    new = [sorted(trace[i + 1]) for i in range(known, done)]
+def sync_robot_table(robot: Robot, key: str, placed: Sequence[str]) -> None:
+    """Make the robot's table hold exactly the stored placements: place the missing ones if what it holds is a
+    prefix of them, else clear it and place them all (a restart, another process, a new demonstration)."""
+    held = robot.placed(key)
+    if held is None or tuple(placed[: len(held)]) != held or len(held) > len(placed):
+        robot.reset(key)
+        held = ()
+    for obj in placed[len(held):]:
+        robot.place(key, obj)
+
+
+def record_labels(a: Action, ts: TaskSessionRow, trace: Sequence[Labels], step_kind: str, step_index: int) -> bool:
+    """Store the labels the robot reported for stored placements that have none yet (one `placed` event each, the
+    initial table first); True if anything was stored."""
+    placed = list(ts.demo_placed)
+    known = len(ts.demo_trace)
+    new = [sorted(trace[i]) for i in range(known, min(len(trace), len(placed) + 1))]
     for i, labels in enumerate(new, start=known):
-        a.log("placed", {"object": placed[i], "labels": labels, "placed": list(placed[: i + 1])},
-              task_index=ts.task_index, step_kind=step_kind, step_index=step_index)
+        if i > 0:
+            a.log("placed", {"object": placed[i - 1], "labels": labels, "placed": placed[:i]},
+                  task_index=ts.task_index, step_kind=step_kind, step_index=step_index)
     if new:
         ts.demo_trace = [*ts.demo_trace, *new]
-    return len(ts.demo_trace) == len(ts.demo_placed) + 1
+    return bool(new)
 
 
-def place_after_commit(a: Action, ts: TaskSessionRow, obj: str) -> None:
-    """Have the robot place obj once the request has committed, then store its labels in a transaction of their own.
-
-    The queue holds only the physics: a request waiting for the table (sync_table) may hold the participant's
-    row lock, which the storing transaction takes, so that runs on a thread of its own afterwards.
-    """
-    ctx, key, token, task_index = a.ctx, robot_key(a.participant, ts.task_index), a.participant.token, ts.task_index
-
-    def physics() -> None:
-        try:
-            ctx.robot.place(key, obj)
-        except Exception:
-            log.exception("the robot failed to place the %s at table %s; the table is rebuilt on the next request",
-                          obj, key)
-            raise
-
-    def store(done: Future[None]) -> None:
-        if done.exception() is None:
-            threading.Thread(target=_store_reported, args=(ctx, token, key, task_index), name="store-labels",
-                             daemon=True).start()
-
-    a.after_commit.append(lambda: ctx.placements.submit(key, physics).add_done_callback(store))
+def place(a: Action, ts: TaskSessionRow, obj: str, step_kind: str, step_index: int) -> None:
+    """Store one placement (already checked) and have the robot report it: a settle job for a robot that takes
+    time, or in the request for one that places at once (ValueError if it cannot place the object)."""
+    before = list(ts.demo_placed)
+    ts.demo_placed = [*before, obj]
+    a.log("place", {"object": obj, "placed": list(ts.demo_placed)},
+          task_index=ts.task_index, step_kind=step_kind, step_index=step_index)
+    robot, key = a.ctx.robot, robot_key(a.participant, ts.task_index)
+    if robot.works_in_background:
+        a.enqueue(SETTLE, ts.task_index, {"step_kind": step_kind, "step_index": step_index})
+        return
+    if not ts.demo_trace:
+        robot.reset(key)
+    sync_robot_table(robot, key, before)
+    robot.place(key, obj)
+    trace = robot.trace(key)
+    if trace is not None:
+        record_labels(a, ts, trace, step_kind, step_index)
 
 
-def _store_reported(ctx: Context, token: str, key: str, task_index: int) -> None:
-    """The background transaction: the labels of the placements the robot has finished, if still current (for the
-    step the session is at now: a late thread may find the next demonstration under way, its table the robot's)."""
-    try:
-        with ctx.db.write() as s:
-            repo.lock_participant(s, token=token)
-            found = repo.get_participant_and_study(s, token=token)
-            if found is None:
+def wait_settled(ctx: Context, token: str, timeout: float = SETTLE_WAIT_SECONDS) -> None:
+    """Until the robot has reported every stored placement of the participant's demonstration (or timeout), in
+    read transactions only; the action that needs it checks again."""
+    deadline = time.monotonic() + timeout
+    while True:
+        with ctx.db.read() as s:
+            participant, _study = participant_and_study(s, token)
+            ts = current_task(s, participant)
+            if ts is None or settled(ts):
                 return
-            participant, study = found
-            if participant.stage != "task" or participant.task_index != task_index:
-                return
-            ts = repo.get_task_session(s, participant_id=participant.id, task_index=task_index)
-            if ts is None or not ts.demo_trace:
-                return
-            a = Action(ctx, s, participant, study, None, None)
-            step_kind, step_index, _total = position_of(ts.state_json)
-            before = len(ts.demo_trace)
-            store_labels(a, ts, step_kind, step_index)
-            if len(ts.demo_trace) == before:
-                return
-            repo.commit(s)
-            participant_id = participant.id
-        ctx.notifier.publish(participant_id)
-    except Exception:  # noqa: BLE001 - the labels are stored by the next request that needs them (finish)
-        log.exception("storing the robot's labels for table %s failed; finishing the demonstration stores them", key)
+        if time.monotonic() >= deadline:
+            return
+        ctx.runtime.wake()
+        time.sleep(SETTLE_POLL_SECONDS)

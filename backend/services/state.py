@@ -7,17 +7,19 @@ import json
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from datetime import timedelta
 from typing import Any
 
 from ..core import session as core
 from ..core.domain import DINNER_OBJECTS, get_domain
 from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
+from ..db import jobs as job_rows
 from ..errors import Conflict, NotAuthenticated
-from ..sim import recordings
-from ..sim.recordings import RecordingId
+from ..recording_store import RecordingId
 from . import executions
 from .context import Context, app_version, aware, iso
+from .runtime import PLAN_AHEAD
 from .guidance import lay_summary, progress, required_objects
 from .planning import ROBOT_TURNS, position_of, session_of
 
@@ -63,10 +65,8 @@ def robot_key(participant: ParticipantRow, task_index: int) -> str:
 
 
 def apply_speed(ctx: Context, key: str, study: StudyRow) -> None:
-    """Tell a robot that shows motion the study's playback speed for this table (others ignore it)."""
-    set_speed = getattr(ctx.robot, "set_speed", None)
-    if set_speed is not None:
-        set_speed(key, float(study.robot_speed or 1.0))
+    """Tell the robot the study's playback speed for this table (a robot that shows no motion ignores it)."""
+    ctx.robot.set_speed(key, float(study.robot_speed or 1.0))
 
 
 def save_recording(ctx: Context, participant: ParticipantRow, task_index: int, kind: str, index: int) -> None:
@@ -83,7 +83,7 @@ def delete_recordings(ctx: Context, participant: ParticipantRow) -> int:
     """Delete every robot recording of this participant (for erasure); the number of files removed.
 
     Call it before the participant's row is deleted (it needs participant.uid)."""
-    return recordings.delete_recordings(ctx.settings.data_dir, participant.uid)
+    return ctx.store.delete_participant(participant.uid)
 
 
 def session_config(study: StudyRow, participant: ParticipantRow, task_index: int) -> core.SessionConfig:
@@ -105,25 +105,14 @@ def current_task(s: Any, participant: ParticipantRow) -> TaskSessionRow | None:
 def sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskSessionRow) -> bool:
     """Record a running execution that has finished by its stored clock; True if the stored state changed.
 
-    The plan and start time are in the database (services.executions), so any process answers alike. An
-    execution whose plan is overdue (its process died while working it out) or that was stored without one
-    by an older version is worked out here, starting now.
-    """
+    The plan and start time are in the database (services.executions), so any process answers alike; an
+    execution still without a plan is being worked out by a work_out job (services.background)."""
     execution = ts.execution
-    if execution is None or execution["status"] != "running":
+    if execution is None or execution["status"] != "running" or execution.get("plan") is None:
         return False
-    changed = False
-    if execution.get("plan") is None:
-        if execution.get("recorded") and not executions.overdue(execution):
-            return False  # still being worked out in the background
-        rid = RecordingId(participant.uid, ts.task_index, execution["kind"], execution["index"])
-        execution = {**execution, "plan": executions.plan(ctx, robot_key(participant, ts.task_index), rid,
-                                                           execution["events"], executions.speed_of(execution)),
-                     "started_at": utcnow().isoformat()}
-        ts.execution, changed = execution, True
     progress = executions.progress(execution)
     if not progress.finished:
-        return changed
+        return False
     trace = progress.trace
     ts.execution = {**execution, "status": "finished", "trace": trace, "finished_at": utcnow().isoformat()}
     repo.append_event(
@@ -132,6 +121,18 @@ def sync_execution(ctx: Context, s: Any, participant: ParticipantRow, ts: TaskSe
         payload={"events": execution["events"], "trace": trace},
     )
     return True
+
+
+def shown_execution(ex: dict[str, Any]) -> dict[str, Any]:
+    """An execution as the page sees it now: one whose stored clock has run out shows as finished, with its
+    trace, even before the runtime has recorded the finish (a read never writes)."""
+    out = {"kind": ex["kind"], "index": ex["index"], "status": ex["status"], "events": ex["events"],
+           "trace": ex.get("trace"), "replays": int(ex.get("replays", 0))}
+    if ex["status"] == "running" and ex.get("plan") is not None:
+        progress = executions.progress(ex)
+        if progress.finished:
+            out.update(status="finished", trace=progress.trace)
+    return out
 
 
 def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed: bool = False) -> dict[str, Any]:
@@ -168,9 +169,7 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
             elif kind in ROBOT_TURNS:
                 ex = ts.execution
                 if ex is not None and (ex["kind"], ex["index"]) == (kind, index):
-                    out["execution"] = {"kind": ex["kind"], "index": ex["index"], "status": ex["status"],
-                                        "events": ex["events"], "trace": ex.get("trace"),
-                                        "replays": int(ex.get("replays", 0))}
+                    out["execution"] = shown_execution(ex)
                 else:
                     out["execution"] = {"kind": kind, "index": index, "status": "not_started",
                                         "events": None, "trace": None}
@@ -219,54 +218,11 @@ def _completion_url(study: StudyRow, code: str | None) -> str | None:
     return study.completion_url.replace("{code}", code or "")
 
 
-def participant_state(ctx: Context, token: str) -> dict[str, Any]:
-    """The participant's state; a robot execution that has finished meanwhile is recorded first."""
+def participant_state(ctx: Context, token: str, *, replayed: bool = False) -> dict[str, Any]:
+    """The participant's state, read only (the runtime records finishes and time-outs; see services.background)."""
     with ctx.db.read() as s:
         participant, study = participant_and_study(s, token)
-        ts = current_task(s, participant)
-        ex = ts.execution if ts is not None else None
-        # Only a running execution that has just finished (or needs working out here) is written.
-        needs_write = ex is not None and ex["status"] == "running" and (
-            executions.progress(ex).finished if ex.get("plan") is not None
-            else not ex.get("recorded") or executions.overdue(ex))
-        expired = timed_out(study, participant)
-        if not needs_write and not expired:
-            if ts is not None and ts.execution is None:
-                ctx.planner.plan_ahead(ts.state_json)  # e.g. after a restart, before the participant asks
-            elif ex is not None and ex["status"] == "running" and ex.get("plan") is None:
-                _resume_working_out(ctx, participant, ts.task_index, ex)
-            return state_view(s, participant, study)
-    try:
-        with ctx.db.write() as s:
-            participant, study = participant_and_study(s, token)
-            if timed_out(study, participant):
-                mark_timed_out(s, participant)
-                repo.commit(s)
-                ctx.notifier.publish(participant.id)
-                return state_view(s, participant, study)
-            ts = current_task(s, participant)
-            if ts is not None and sync_execution(ctx, s, participant, ts):
-                stored = ts.execution
-                repo.commit(s)
-                ctx.notifier.publish(participant.id)
-                executions.announce(ctx, participant.id, stored)  # one worked out here: its action ends
-            return state_view(s, participant, study)
-    except repo.WriteConflict:
-        # Another request (the page's poll, another process) recorded the same finish first: show what it stored.
-        with ctx.db.read() as s:
-            participant, study = participant_and_study(s, token)
-            return state_view(s, participant, study)
-
-
-def _resume_working_out(ctx: Context, participant: ParticipantRow, task_index: int, ex: dict[str, Any]) -> None:
-    """An execution still being worked out, perhaps by a process that has died: work it out here too (the robot
-    skips it if it is already doing so). Never fails the request that only asked for the state."""
-    try:
-        executions.work_out_in_background(ctx, robot_key(participant, task_index), participant.id,
-                                          RecordingId(participant.uid, task_index, ex["kind"], ex["index"]),
-                                          list(ex["events"]), executions.speed_of(ex))
-    except Exception:  # noqa: BLE001 - the overdue path in sync_execution works it out in the end
-        log.warning("could not resume working out an execution", exc_info=True)
+        return state_view(s, participant, study, replayed=replayed)
 
 
 def participant_and_study(s: Any, token: str) -> tuple[ParticipantRow, StudyRow]:
@@ -291,7 +247,8 @@ class Expect:
 
 @dataclass
 class Action:
-    """One participant request being carried out: its log writes carry the idempotency key."""
+    """One participant request being carried out: its log writes carry the idempotency key; what it needs done
+    after its transaction (jobs, robot calls, notices) is collected here and run once it has committed."""
 
     ctx: Context
     s: Any
@@ -300,8 +257,9 @@ class Action:
     key: str | None
     digest: str | None
     n_logged: int = 0
-    plan_ahead: str | None = None  # a stored state whose robot turn can be planned once this commits
-    after_commit: list[Callable[[], None]] = field(default_factory=list)  # background work once committed
+    plan_ahead: str | None = None  # a stored state whose robot turn a plan_ahead job plans once this commits
+    effects: list[Callable[[], None]] = field(default_factory=list)  # run after the commit, outside the transaction
+    wake_runtime: bool = False  # jobs were added: the runtime looks for them at once after the commit
 
     def log(self, kind: str, payload: dict[str, Any], *, task_index: int | None = None,
             step_kind: str | None = None, step_index: int | None = None) -> None:
@@ -314,15 +272,30 @@ class Action:
             client_event_id=self.key if first else None, request_digest=self.digest if first else None,
         )
 
+    def enqueue(self, kind: str, task_index: int, payload: dict[str, Any], *, due_in: float = 0.0) -> None:
+        """Record a background job in this action's transaction (services.background says what each kind does)."""
+        job_rows.add_job(self.s, kind=kind, participant_id=self.participant.id, task_index=task_index,
+                         payload=payload, due_at=utcnow() + timedelta(seconds=max(0.0, due_in)))
+        self.wake_runtime = True
+
+    def after(self, effect: Callable[[], None]) -> None:
+        """Run effect once the action has committed, outside its transaction (a failure is logged)."""
+        self.effects.append(effect)
+
 
 def _digest(action: str, body: dict[str, Any]) -> str:
     return hashlib.sha256(json.dumps([action, body], sort_keys=True, default=str).encode()).hexdigest()
 
 
 def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | None,
-         run: Callable[[Action], None]) -> dict[str, Any]:
-    """Run one participant action in a write transaction: replay check, change, log, commit, new state."""
+        run: Callable[[Action], None]) -> dict[str, Any]:
+    """Run one participant action as one unit of work: replay check, change, log and jobs in one write
+    transaction and one commit; then, with the transaction ended, the notice, the runtime's wake-up, the
+    action's effects and the new state (read in a transaction of its own)."""
     digest = _digest(action, body)
+    conflict: Conflict | None = None
+    done: Action | None = None
+    replayed = expired = False
     with ctx.db.write() as s:
         if token:
             repo.lock_participant(s, token=token)  # one request per participant at a time (PostgreSQL)
@@ -330,40 +303,48 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
         if found is None:
             raise _unknown_token()
         participant, study, earlier = found
+        participant_id = participant.id
         if earlier is None and action != "withdraw" and timed_out(study, participant):
             mark_timed_out(s, participant)
             repo.commit(s)
-            ctx.notifier.publish(participant.id)
-            raise Conflict("you were away longer than this study allows, so it has ended for you",
-                           state=state_view(s, participant, study))
-        if earlier is not None:
+            expired = True
+        elif earlier is not None:
             if earlier.request_digest == digest:
-                return state_view(s, participant, study, replayed=True)
-            raise Conflict(f"Idempotency-Key {key!r} was already used for a different request "
-                           f"({earlier.kind}); use a new key for a new action",
-                           state=state_view(s, participant, study))
-        try:
-            action = Action(ctx, s, participant, study, key, digest)
-            run(action)
-            repo.commit(s)
-            ctx.notifier.publish(participant.id)
-            for then in action.after_commit:
-                then()
-            if action.plan_ahead is not None:
-                ctx.planner.plan_ahead(action.plan_ahead)
-                ts_index = participant.task_index
-                executions.prepare_ahead(ctx, robot_key(participant, ts_index), participant.uid, ts_index,
-                                         action.plan_ahead, float(study.robot_speed or 1.0))
-            return state_view(s, participant, study)
-        except Conflict as exc:
-            conflict = exc
-        except repo.WriteConflict as exc:
-            conflict = Conflict(f"another request for this participant was stored first; here is the current "
-                                f"state ({exc})")
-    # Outside the write transaction (and its lock): the current state for the 409 answer.
-    if conflict.state is None:
-        conflict.state = _reload_state(ctx, token)
-    raise conflict
+                replayed = True
+            else:
+                conflict = Conflict(f"Idempotency-Key {key!r} was already used for a different request "
+                                    f"({earlier.kind}); use a new key for a new action")
+        else:
+            try:
+                a = Action(ctx, s, participant, study, key, digest)
+                run(a)
+                if a.plan_ahead is not None:
+                    a.enqueue(PLAN_AHEAD, participant.task_index, {"state": a.plan_ahead})
+                repo.commit(s)
+                done = a
+            except Conflict as exc:
+                conflict = exc
+            except repo.WriteConflict as exc:
+                conflict = Conflict(f"another request for this participant was stored first; here is the current "
+                                    f"state ({exc})")
+    # The transaction has ended (and with it SQLite's write lock): effects, then the new state.
+    if expired:
+        ctx.notifier.publish(participant_id)
+        conflict = Conflict("you were away longer than this study allows, so it has ended for you")
+    if conflict is not None:
+        if conflict.state is None:
+            conflict.state = _reload_state(ctx, token)
+        raise conflict
+    if done is not None:
+        ctx.notifier.publish(participant_id)
+        if done.wake_runtime:
+            ctx.runtime.wake()
+        for effect in done.effects:
+            try:
+                effect()
+            except Exception:  # noqa: BLE001 - the action is stored; an effect only shows or tidies it
+                log.exception("an effect of the %s action of participant %s failed", action, participant_id)
+    return participant_state(ctx, token, replayed=replayed)
 
 
 def _reload_state(ctx: Context, token: str) -> dict[str, Any] | None:

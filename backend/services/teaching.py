@@ -6,14 +6,15 @@ import secrets
 from typing import Any
 
 from ..core import session as core
-from ..core.domain import DINNER_OBJECTS
+from ..core.domain import DINNER_OBJECTS, get_domain
 from ..db import repository as repo
 from ..db.tables import TaskSessionRow, utcnow
 from ..errors import Conflict, InvalidInput
-from ..sim.recordings import RecordingId
+from ..recording_store import RecordingId
 from . import executions, placements
 from .context import Context
 from .planning import ROBOT_TURNS, session_of
+from .runtime import FINISH_EXECUTION, WORK_OUT
 from .state import (
     Action,
     Expect,
@@ -68,37 +69,33 @@ def place_object(ctx: Context, token: str, *, obj: str, expect: Expect, key: str
             raise InvalidInput(f"unknown object {obj!r}; expected one of {', '.join(DINNER_OBJECTS)}")
         if obj in ts.demo_placed:
             raise Conflict(f"the {obj} is already on the table; a placed object cannot be placed again")
-        placements.sync_table(a, ts)
-        ts.demo_placed = [*ts.demo_placed, obj]
-        a.log("place", {"object": obj, "placed": list(ts.demo_placed)},
-              task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
-        if executions.works_in_background(a.ctx):  # a robot that takes time places after the answer too
-            placements.place_after_commit(a, ts, obj)
-            return
         try:
-            a.ctx.robot.place(robot_key(a.participant, ts.task_index), obj)
+            placements.place(a, ts, obj, step.kind, step.index)
         except ValueError as exc:
             raise Conflict(f"the robot could not place the {obj}: {exc}") from exc
-        placements.store_labels(a, ts, step.kind, step.index)
 
     return act(ctx, token, "place", {"object": obj, **expect.__dict__}, key, run)
 
 
 def finish_demonstration(ctx: Context, token: str, *, expect: Expect, key: str | None = None) -> dict[str, Any]:
     """End the practice trial or demonstration (stopping early is allowed: Task 2 needs it)."""
+    placements.wait_settled(ctx, token)  # outside any transaction: the runtime stores the robot's last labels
+
     def run(a: Action) -> None:
         ts, state, step = _teaching(a, expect, ("practice", "demonstration"))
-        placements.sync_table(a, ts)
-        if not placements.store_labels(a, ts, step.kind, step.index):
-            raise Conflict("the robot has not reported the table after every placement; try again")
-        trace = [list(labels) for labels in ts.demo_trace]
+        if not placements.settled(ts):
+            raise Conflict("the robot has not reported the table after every placement yet; try again in a moment")
+        # Nothing placed: the trace is the cleared table alone (no robot was asked, so none has reported it).
+        trace = [list(labels) for labels in ts.demo_trace] or [sorted(get_domain("dinner").labels(()))]
         new_state = core.observe(state, step.kind, trace)
         a.log("demonstration", {"placed": list(ts.demo_placed), "trace": trace},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
+        table = robot_key(a.participant, ts.task_index)
         if ts.demo_placed:
-            save_recording(a.ctx, a.participant, ts.task_index, step.kind, step.index)
+            participant, task_index, kind, index = a.participant, ts.task_index, step.kind, step.index
+            a.after(lambda: save_recording(a.ctx, participant, task_index, kind, index))
+        a.after(lambda: a.ctx.robot.release(table))
         ts.demo_placed, ts.demo_trace = [], []
-        a.ctx.robot.release(robot_key(a.participant, ts.task_index))
         _advance(a, ts, new_state)
 
     return act(ctx, token, "finish", dict(expect.__dict__), key, run)
@@ -118,15 +115,16 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
         rid = RecordingId(a.participant.uid, ts.task_index, step.kind, step.index)
         robot = robot_key(a.participant, ts.task_index)
         speed = float(a.study.robot_speed or 1.0)  # the recorded motion plays at the study's speed
-        ts.execution = {"kind": step.kind, "index": step.index, "events": events, "status": "running",
-                        "trace": None, "p_acceptable": step.p_acceptable,
-                        **executions.begin(a.ctx, robot, rid, events, speed)}
-        pid = a.participant.id
-        if ts.execution["plan"] is None:
-            a.after_commit.append(lambda: executions.work_out_in_background(a.ctx, robot, pid, rid, events, speed))
+        ts.execution = started = {"kind": step.kind, "index": step.index, "events": events, "status": "running",
+                                  "trace": None, "p_acceptable": step.p_acceptable,
+                                  **executions.begin(a.ctx, robot, rid, events, speed)}
+        where = {"kind": step.kind, "index": step.index}
+        if started["plan"] is None:
+            a.enqueue(WORK_OUT, ts.task_index, {**where, "events": events})
         else:
-            started = ts.execution
-            a.after_commit.append(lambda: executions.announce(a.ctx, pid, started))
+            pid = a.participant.id
+            a.enqueue(FINISH_EXECUTION, ts.task_index, where, due_in=executions.duration(started))
+            a.after(lambda: executions.announce(a.ctx, pid, started))
         a.log("execution_started", {"events": events, "p_acceptable": step.p_acceptable},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
         sync_execution(a.ctx, a.s, a.participant, ts)
@@ -154,7 +152,8 @@ def assess_execution(ctx: Context, token: str, *, acceptable: bool | None, expec
                              "p_acceptable": ex.get("p_acceptable")},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
         ts.execution = None
-        a.ctx.robot.release(robot_key(a.participant, ts.task_index))
+        table = robot_key(a.participant, ts.task_index)
+        a.after(lambda: a.ctx.robot.release(table))
         _advance(a, ts, new_state)
 
     return act(ctx, token, "assess", {"acceptable": acceptable, **expect.__dict__}, key, run)
@@ -168,7 +167,8 @@ def _advance(a: Action, ts: TaskSessionRow, new_state: core.SessionState) -> Non
     if new_state.phase != "done":
         return
     a.log("task_finished", {}, task_index=ts.task_index)
-    a.ctx.robot.close(robot_key(a.participant, ts.task_index))  # the next task has its own table (and view)
+    table = robot_key(a.participant, ts.task_index)
+    a.after(lambda: a.ctx.robot.close(table))  # the next task has its own table (and view)
     sequence = task_sequence(a.study, a.participant)
     position = sequence.index(ts.task_index)
     if position + 1 < len(sequence):

@@ -7,13 +7,13 @@ from collections.abc import Callable
 from typing import Any, NamedTuple
 
 from ..errors import Conflict, InvalidInput
-from ..robot import ViewingRobot
-from ..sim.recordings import RecordingId
+from ..recording_store import RecordingId
+from ..robot import ViewAddress
 from . import executions
 from .context import Context
-from .placements import rebuild_table
+from .placements import sync_robot_table
 from .planning import position_of
-from .state import Action, Expect, act, apply_speed, current_task, participant_and_study, robot_key
+from .state import Action, Expect, act, current_task, participant_and_study, robot_key
 from .teaching import _teaching as teaching_step  # the same step check as the other teaching actions
 from .teaching import place_object
 
@@ -23,53 +23,55 @@ log = logging.getLogger(__name__)
 def prepare_viewer(ctx: Context, token: str) -> bool:
     """Whether the participant's current step has a 3D view (a task under way and a robot that shows one).
 
-    A view already running is readied for this step here (its table, and clicks for a demonstration); a new
-    one starts when the page's viewer connects its websocket (open_viewer), so this REST call never waits
-    for a viser server to start.
-    """
-    robot = ctx.robot
+    A browser already showing the table is readied for this step here (its table, and clicks for a
+    demonstration); a new browser is connected when the page's viewer opens its websocket (open_viewer)."""
     with ctx.db.read() as s:
         participant, _study = participant_and_study(s, token)  # an unknown token is refused whatever the robot
         ts = current_task(s, participant)
-        if not isinstance(robot, ViewingRobot) or ts is None:
+        if not ctx.robot.shows_view or ts is None:
             return False
         key = robot_key(participant, ts.task_index)
-    if robot.has_view(key):
+    if ctx.robot.has_view(key):
         return open_viewer(ctx, token) is not None
     return True
 
 
-def open_viewer(ctx: Context, token: str) -> int | None:
-    """The local port of the participant's 3D view for the current step, or None (no task, or a robot without view).
+def open_viewer(ctx: Context, token: str) -> ViewAddress | None:
+    """Where the participant's browser connects to the 3D view of the current step, or None (no task, or a robot
+    without views).
 
-    The view is started on first use and shows the stored state of the step (the robot forgets its
-    tables on a restart); during a practice trial or demonstration a click on a waiting object is a
-    placement through place_object, the same code path as POST /me/placements.
+    The view shows the stored state of the step: the robot's table is rebuilt from the stored placements
+    first (the robot forgets its tables on a restart), under the table's runtime lock so that no placement
+    job changes it meanwhile. During a practice trial or demonstration a click on a waiting object is queued
+    to the runtime and carried out by place_object, the same code path as POST /me/placements.
     """
-    robot = ctx.robot
-    if not isinstance(robot, ViewingRobot):
-        with ctx.db.read() as s:
-            participant_and_study(s, token)  # an unknown token is refused whatever the robot
-        return None
-    # A write transaction (never committed) so that no placement is stored while the table is synced.
-    with ctx.db.write() as s:
-        participant, study_row = participant_and_study(s, token)
+    with ctx.db.read() as s:
+        participant, study_row = participant_and_study(s, token)  # an unknown token is refused whatever the robot
+        if not ctx.robot.shows_view:
+            return None
         ts = current_task(s, participant)
         if ts is None:
             return None
         kind, index, _ = position_of(ts.state_json)
-        key = robot_key(participant, ts.task_index)
-        apply_speed(ctx, key, study_row)
-        on_click: Callable[[str], None] | None = None
-        if kind in ("practice", "demonstration"):
-            if ts.demo_trace:
-                rebuild_table(ctx, key, ts.demo_placed)
-            expect = Expect(ts.task_index, kind, index)
+        demonstrating = kind in ("practice", "demonstration")
+        key, pid, task_index = robot_key(participant, ts.task_index), participant.id, ts.task_index
+        speed = float(study_row.robot_speed or 1.0)
+    robot = ctx.robot
+    robot.set_speed(key, speed)
+    with ctx.runtime.table_lock(pid, task_index):
+        with ctx.db.read() as s:  # read again under the lock: a placement job may have run meanwhile
+            participant, _study = participant_and_study(s, token)
+            ts = current_task(s, participant)
+            placed = list(ts.demo_placed) if ts is not None and demonstrating else []
+        sync_robot_table(robot, key, placed)
+    on_click: Callable[[str], None] | None = None
+    if demonstrating:
+        expect = Expect(task_index, kind, index)
 
-            def on_click(obj: str) -> None:
-                _place_clicked(ctx, token, obj, expect)
-        # Robot turns are shown by playing the execution's recording in the browser (current_motion).
-        return robot.open_view(key, on_click)
+        def on_click(obj: str) -> None:  # a viser thread: only queue it
+            ctx.runtime.submit(lambda: _place_clicked(ctx, token, key, obj, expect))
+    # Robot turns are shown by playing the execution's recording in the browser (current_motion).
+    return robot.open_view(key, on_click)
 
 
 def participant_uid_of(ctx: Context, token: str) -> str:
@@ -101,12 +103,16 @@ def current_motion(ctx: Context, token: str) -> Motion | None:
         return Motion(RecordingId(participant.uid, ts.task_index, kind, index), int(ex.get("replays", 0)))
 
 
-def _place_clicked(ctx: Context, token: str, obj: str, expect: Expect) -> None:
-    """A click in the 3D view; one that came too late for its step is dropped."""
+def _place_clicked(ctx: Context, token: str, key: str, obj: str, expect: Expect) -> None:
+    """A click in the 3D view, on the runtime's action queue; one that came too late for its step is dropped."""
     try:
         place_object(ctx, token, obj=obj, expect=expect)
     except (Conflict, InvalidInput) as exc:
         log.info("click on %s not placed: %s", obj, exc.message)
+    except Exception:  # noqa: BLE001 - a busy database: the participant clicks again (the page says so)
+        log.warning("click on %s could not be placed now", obj, exc_info=True)
+    finally:
+        ctx.robot.click_done(key)
 
 
 def replay_execution(ctx: Context, token: str, *, expect: Expect, key: str | None = None) -> dict[str, Any]:
@@ -129,7 +135,7 @@ def replay_execution(ctx: Context, token: str, *, expect: Expect, key: str | Non
         replayed["pid"] = a.participant.id
         a.log("replay_watched", {"events": ex["events"], "replay": ts.execution["replays"]},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
-        a.after_commit.append(lambda: executions.announce(ctx, replayed["pid"], replayed["ex"]))
+        a.after(lambda: executions.announce(ctx, replayed["pid"], replayed["ex"]))
 
     return act(ctx, token, "replay", dict(expect.__dict__), key, run)
 
@@ -142,9 +148,8 @@ def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
         key = None if ts is None else robot_key(participant, ts.task_index)
         ex = None if ts is None else ts.execution
     robot = ctx.robot
-    viewing = isinstance(robot, ViewingRobot)
-    activity = robot.activity(key) if viewing and key is not None else None
-    out = {"view": viewing, "moving": bool(activity and activity.moving),
+    activity = robot.activity(key) if key is not None else None
+    out = {"view": robot.shows_view, "moving": bool(activity and activity.moving),
            "caption": activity.caption if activity else "", "watchers": activity.watchers if activity else 0}
     if ex is not None and ex["status"] == "running":
         # An execution's progress is in the database, whichever process started it.

@@ -16,10 +16,10 @@ from pathlib import Path
 import mujoco
 
 from .recording import Recording
-from .recordings import FOLDER, RecordingId
+from ..recording_store import VISER_SUFFIX, FileRecordingStore, RecordingId
 from .view import SceneView
 
-SUFFIX = ".viser"
+SUFFIX = VISER_SUFFIX
 # viser's player starts a recording again once it reaches its end; holding the last pose this long keeps a
 # finished execution still on screen (the participant judges it) instead of replaying it by itself.
 HOLD_SECONDS = 600.0
@@ -27,7 +27,7 @@ HOLD_SECONDS = 600.0
 
 def viser_path(data_dir: Path | str, rid: RecordingId) -> Path:
     """Where the .viser file of a recorded step is kept (next to its .npz and .json)."""
-    return (Path(data_dir) / FOLDER / rid.name).with_suffix(SUFFIX)
+    return FileRecordingStore(data_dir).playable(rid)
 
 
 class Studio:

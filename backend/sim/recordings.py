@@ -8,56 +8,15 @@ removes all of a participant's files (for erasure)."""
 from __future__ import annotations
 
 import json
-import re
-import shutil
 from dataclasses import dataclass
 from pathlib import Path
 
 from .recording import Recording
 
-FOLDER = "recordings"
-STEP_KINDS = ("practice", "demonstration", "query", "test")
-_UID = re.compile(r"^[0-9a-f]{32}$")
-_NAME = re.compile(r"^participant-([0-9a-f]{32})/task-(\d+)/(practice|demonstration|query|test)-(\d+)$")
+from ..recording_store import FOLDER, STEP_KINDS, FileRecordingStore, RecordingId, check_uid
 
-
-@dataclass(frozen=True, order=True)
-class RecordingId:
-    """Which step of which participant a recording shows (indices count from 0, as in the API)."""
-
-    participant_uid: str
-    task_index: int
-    step_kind: str
-    step_index: int
-
-    def __post_init__(self) -> None:
-        check_uid(self.participant_uid)
-        if self.step_kind not in STEP_KINDS:
-            raise ValueError(f"step_kind is {self.step_kind!r}: expected one of {', '.join(STEP_KINDS)}")
-        if min(self.task_index, self.step_index) < 0:
-            raise ValueError(f"{self} has a negative index: expected whole numbers >= 0")
-
-    @property
-    def name(self) -> str:
-        """The relative path without suffix, e.g. participant-<uid>/task-0/query-1."""
-        return f"participant-{self.participant_uid}/task-{self.task_index}/{self.step_kind}-{self.step_index}"
-
-    @classmethod
-    def parse(cls, name: str) -> RecordingId:
-        """The id a name() string stands for."""
-        match = _NAME.match(name)
-        if match is None:
-            raise ValueError(f"recording name {name!r}: expected participant-<uid>/task-<i>/<kind>-<j> "
-                             "with a 32-hex-digit uid")
-        uid, task, kind, index = match.groups()
-        return cls(uid, int(task), kind, int(index))
-
-
-def check_uid(uid: str) -> str:
-    """The uid itself if it is 32 lowercase hex digits (so it is safe as a folder name), else ValueError."""
-    if not isinstance(uid, str) or not _UID.match(uid):
-        raise ValueError(f"participant uid {uid!r}: expected 32 lowercase hex digits")
-    return uid
+__all__ = ["FOLDER", "STEP_KINDS", "RecordingId", "SavedRecording", "check_uid", "delete_recordings",
+           "list_recordings", "load_recording", "save_recording"]
 
 
 @dataclass(frozen=True)
@@ -119,9 +78,4 @@ def load_recording(data_dir: Path | str, rid: RecordingId) -> SavedRecording:
 
 def delete_recordings(data_dir: Path | str, participant_uid: str) -> int:
     """Remove every recording of one participant (their whole folder); the number of files removed."""
-    folder = Path(data_dir) / FOLDER / f"participant-{check_uid(participant_uid)}"
-    if not folder.exists():
-        return 0
-    removed = sum(1 for path in folder.rglob("*") if path.is_file())
-    shutil.rmtree(folder)
-    return removed
+    return FileRecordingStore(data_dir).delete_participant(participant_uid)

@@ -7,7 +7,7 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Query
 from pydantic import BaseModel, Field
 
-from .. import analysis
+from ..services import analysis
 from .deps import ContextDep, Experimenter, ParticipantId, StepIndex
 from .schemas import ParticipantBaseOut, error_responses
 

@@ -42,14 +42,9 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
+        ctx.start()  # the runtime: job runners (durable background work), scheduler, action queue, robot
         yield
-        ctx.planner.shutdown()
-        ctx.placements.shutdown()  # placements under way end first: they use the robot and the database
-        ctx.notifier.close()  # PgNotifier: its LISTEN and NOTIFY connections
-        shutdown = getattr(ctx.robot, "shutdown", None)  # the MuJoCo robot stops its viser servers
-        if shutdown is not None:
-            shutdown()
-        ctx.db.dispose()
+        ctx.close()  # handlers under way end; the robot, the notifier's connections and the database close
 
     # /docs and /redoc load their scripts from a CDN: offered in dev mode only (/openapi.json is always served).
     docs = {} if settings.dev_mode else {"docs_url": None, "redoc_url": None}

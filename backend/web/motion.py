@@ -13,12 +13,11 @@ from starlette.concurrency import run_in_threadpool
 
 from .. import services
 from ..errors import NotAuthenticated
-from ..sim.motion_file import viser_path
-from ..sim.recordings import RecordingId
+from ..recording_store import RecordingId
 from .deps import ContextDep
 
 router = APIRouter(tags=["participant page"])
-WAIT_SECONDS = 30.0  # executions.PREPARE_GRACE_SECONDS: by then some process has worked it out, or it failed
+WAIT_SECONDS = 30.0  # a work_out job takes about a second; by then it has run (or is being retried)
 POLL_SECONDS = 0.1
 
 
@@ -47,7 +46,7 @@ async def motion_file(token: str, task_index: int, step_kind: str, step_index: i
         return PlainTextResponse("No participant has this link.", status_code=404)
     except ValueError as exc:
         return PlainTextResponse(f"No such recording: {exc}", status_code=404)
-    path = viser_path(ctx.settings.data_dir, rid)
+    path = ctx.store.playable(rid)
     deadline = time.monotonic() + WAIT_SECONDS
     while not path.is_file() and time.monotonic() < deadline:
         await asyncio.sleep(POLL_SECONDS)

@@ -13,6 +13,5 @@ def make_robot(settings: Settings) -> Robot:
     if settings.robot == "mujoco":
         from ..sim.robot import MujocoRobot  # imports mujoco and viser
 
-        return MujocoRobot(speed=settings.robot_speed, data_dir=settings.data_dir,
-                           idle_seconds=settings.viewer_idle_minutes * 60, workers=settings.robot_workers)
+        return MujocoRobot(speed=settings.robot_speed, data_dir=settings.data_dir, workers=settings.robot_workers)
     raise ValueError(f"unknown robot {settings.robot!r}; expected 'trace' or 'mujoco'")

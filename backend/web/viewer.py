@@ -1,6 +1,6 @@
 """The participant page's live links: the same-origin 3D view (viser's client page plus a websocket proxy
-to the participant's own viser server on 127.0.0.1), the robot's activity, change notices as server-sent
-events, and the one-tab lease.
+to the process's viser server on 127.0.0.1, one scene per browser), the robot's activity, change notices as
+server-sent events, and the one-tab lease.
 
 This module and tableteach.sim are the only code that knows viser's ports. The proxy checks the
 participant's token and forwards viser's version subprotocol (Sec-WebSocket-Protocol); without it
@@ -154,19 +154,20 @@ async def viewer_socket(websocket: WebSocket, token: str) -> None:
         await websocket.close(code=CLOSE_POLICY, reason="this view can be opened only from the study's own page")
         return
     try:
-        port = await run_in_threadpool(services.open_viewer, ctx, token)
+        address = await run_in_threadpool(services.open_viewer, ctx, token)
     except NotAuthenticated:
         await websocket.close(code=CLOSE_POLICY, reason="unknown participant token")
         return
-    if port is None:
+    if address is None:
         await websocket.close(code=CLOSE_POLICY, reason="no 3D view at this stage of the study")
         return
     offered = list(websocket.scope.get("subprotocols") or [])
     try:
-        upstream = await websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=offered or None,  # type: ignore[arg-type]
+        upstream = await websockets.connect(f"ws://127.0.0.1:{address.port}{address.path}",
+                                            subprotocols=offered or None,  # type: ignore[arg-type]
                                             max_size=None, compression=None, open_timeout=10)
     except (OSError, websockets.WebSocketException, asyncio.TimeoutError) as exc:
-        log.warning("viewer of participant page could not reach viser on port %s: %s", port, exc)
+        log.warning("viewer of participant page could not reach viser on port %s: %s", address.port, exc)
         await websocket.close(code=1011, reason="the 3D view is not available; reload the page")
         return
     async with upstream:

@@ -83,7 +83,7 @@ def test_playback_follows_recorded_time_and_stops_on_request(view, world):
     stop = threading.Event()
     stop.set()
     assert play(rec, view, stop=stop) == 0
-    np.testing.assert_allclose(view._last["bowl"], rec.poses[-1, rec.bodies.index("bowl")], atol=1e-4)
+    np.testing.assert_allclose(view._mirror._last["bowl"], rec.poses[-1, rec.bodies.index("bowl")], atol=1e-4)
 
 
 def test_late_playback_skips_frames_instead_of_slowing_down(view, world):
@@ -92,7 +92,7 @@ def test_late_playback_skips_frames_instead_of_slowing_down(view, world):
     shown = play(rec, view, speed=1000.0)  # far faster than poses can be pushed
     assert shown < len(rec) / 2
     assert time.perf_counter() - started < 0.5
-    np.testing.assert_allclose(view._last["hand"], rec.poses[-1, rec.bodies.index("hand")], atol=1e-4)
+    np.testing.assert_allclose(view._mirror._last["hand"], rec.poses[-1, rec.bodies.index("hand")], atol=1e-4)
 
 
 def test_capsule_mesh_is_closed_and_sized():

@@ -66,8 +66,12 @@ def test_the_robot_hands_executions_to_its_workers_and_stops_them_at_shutdown(tm
     robot = MujocoRobot(data_dir=tmp_path, workers=2)
     try:
         rid = _rid()
-        futures = [robot.prepare("k", EVENTS, rid.name), robot.prepare("j", ("bowl",), _rid("test").name)]
-        plans = [f.result(timeout=120) for f in futures]
+        from concurrent.futures import ThreadPoolExecutor
+
+        with ThreadPoolExecutor(2) as pool:  # as two runtime job threads would
+            futures = [pool.submit(robot.plan_execution, "k", EVENTS, rid.name),
+                       pool.submit(robot.plan_execution, "j", ("bowl",), _rid("test").name)]
+            plans = [f.result(timeout=120) for f in futures]
         assert plans[0].trace[-1] == frozenset(EVENTS) and plans[1].trace[-1] == frozenset({"bowl"})
         assert robot.plan_execution("k", EVENTS, rid.name) == plans[0]  # remembered, not worked out again
         procs = [w.proc for w in robot._workers._all if w.proc is not None]

@@ -292,7 +292,7 @@ def test_the_dashboard_page_and_only_its_own_assets_are_served(app_client: Any) 
 
 
 def test_a_new_learning_step_costs_the_dashboard_one_belief_summary_not_all_of_them() -> None:
-    from tableteach import analysis
+    from tableteach.services import analysis
     from tableteach.core import session as core
     from tableteach.services.monitoring import belief_view
 

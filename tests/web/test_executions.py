@@ -1,48 +1,50 @@
-"""Executions worked out in the background: the start answers at once, the plan is stored when the robot is
-ready and its clock starts then; a plan that never comes (its process died) is worked out by a later request."""
+"""Executions worked out in the background: the start answers at once with a work_out job stored in its own
+transaction; the plan is stored when the robot is ready and its clock starts then; a job whose process died, or
+whose robot failed, is done again until it succeeds."""
 
 from __future__ import annotations
 
 import threading
 import time
 from collections.abc import Iterator, Sequence
-from concurrent.futures import Future
 from datetime import timedelta
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+from tableteach.db import jobs as job_rows
+from tableteach.db.tables import JobRow, utcnow
 from tableteach.robot import ExecutionPlan, TraceRobot
 from tableteach.services import executions
+from tableteach.services.runtime import WORK_OUT
 
 from .conftest import in_process_app
 from .helpers import bearer, demonstrate, make_study, to_teaching
 
+WAIT = 60.0  # generous: the suite passes on a busy machine
+
 
 class SlowRobot(TraceRobot):
-    """A trace robot that, like the MuJoCo one, works executions out in the background (when the test says)."""
+    """A trace robot that, like the MuJoCo one, works executions out in the background, and only once the test
+    lets it (or fails the first `failures` times)."""
 
-    def __init__(self) -> None:
+    works_in_background = True
+
+    def __init__(self, failures: int = 0) -> None:
         super().__init__("dinner", seconds_per_object=0.05)
         self.release_plans = threading.Event()
-        self.prepared: list[str] = []
+        self.worked: list[str] = []
+        self.failures = failures
 
-    def prepare(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> Future[ExecutionPlan]:
-        future: Future[ExecutionPlan] = Future()
-        self.prepared.append(name)
-        if self.release_plans.is_set():  # worked out ahead: done by the time the execution starts
-            future.set_result(self.plan_execution(key, events, name, speed=speed))
-            return future
-
-        def work() -> None:
-            if self.release_plans.wait(10):
-                future.set_result(self.plan_execution(key, events, name, speed=speed))
-            else:
-                future.set_exception(RuntimeError("the test never let the plan through"))
-
-        threading.Thread(target=work, daemon=True).start()
-        return future
+    def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
+        self.worked.append(name)
+        if self.failures > 0:
+            self.failures -= 1
+            raise RuntimeError("the robot failed to work the execution out")
+        if not self.release_plans.wait(WAIT):
+            raise RuntimeError("the test never let the plan through")
+        return super().plan_execution(key, events, name, speed=speed)
 
 
 @pytest.fixture
@@ -74,6 +76,24 @@ def _uid(client: Any, token: str) -> str:
         return participant_and_study(s, token)[0].uid
 
 
+def _until(condition: Any, what: str) -> None:
+    deadline = time.monotonic() + WAIT
+    while not condition():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.02)
+
+
+def _finished(client: Any, token: str) -> dict[str, Any]:
+    state: dict[str, Any] = {}
+
+    def done() -> bool:
+        state.update(client.get("/api/v1/me", headers=bearer(token)).json())
+        return state["execution"]["status"] == "finished"
+
+    _until(done, "the execution never finished")
+    return state
+
+
 def test_the_start_answers_before_the_plan_and_the_clock_starts_when_it_is_stored(slow_client) -> None:
     token = _to_first_query(slow_client)
     robot: SlowRobot = slow_client.ctx.robot
@@ -81,78 +101,54 @@ def test_the_start_answers_before_the_plan_and_the_clock_starts_when_it_is_store
     assert started.status_code == 200 and started.json()["execution"]["status"] == "running"
     stored = _stored_execution(slow_client, token)
     assert stored["plan"] is None and stored["recorded"]
-    assert robot.prepared[-1] == f"participant-{_uid(slow_client, token)}/task-0/query-0"
+    _until(lambda: robot.worked, "no work_out job ran")
+    assert robot.worked[-1] == f"participant-{_uid(slow_client, token)}/task-0/query-0"
     activity = slow_client.get("/api/v1/me/robot", headers=bearer(token)).json()
     assert activity["moving"] and activity["caption"] == executions.GETTING_READY
     time.sleep(0.3)  # longer than the whole execution would take: without a plan it must not finish
     assert slow_client.get("/api/v1/me", headers=bearer(token)).json()["execution"]["status"] == "running"
 
     robot.release_plans.set()
-    deadline = time.monotonic() + 10
-    while _stored_execution(slow_client, token)["plan"] is None:
-        assert time.monotonic() < deadline, "the plan worked out in the background was never stored"
-        time.sleep(0.02)
-    state = slow_client.get("/api/v1/me", headers=bearer(token)).json()
-    while state["execution"]["status"] != "finished":
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
-        state = slow_client.get("/api/v1/me", headers=bearer(token)).json()
+    _until(lambda: _stored_execution(slow_client, token)["plan"] is not None,
+           "the plan worked out in the background was never stored")
+    state = _finished(slow_client, token)
     assert state["execution"]["trace"][-1] == sorted(state["execution"]["events"])
+    _until(lambda: _stored_execution(slow_client, token)["status"] == "finished",
+           "the runtime never recorded the finish (finish_execution job)")
 
 
-def test_a_plan_that_never_comes_is_worked_out_by_a_later_request(slow_client) -> None:
+def test_a_robot_that_fails_is_asked_again_until_the_plan_is_stored(tmp_path: Path) -> None:
+    robot = SlowRobot(failures=2)
+    robot.release_plans.set()
+    with in_process_app(tmp_path, robot) as client:
+        token = _to_first_query(client)
+        assert client.post("/api/v1/me/execution", headers=bearer(token)).status_code == 200
+        _until(lambda: _stored_execution(client, token)["plan"] is not None, "the failed job was never retried")
+        assert len([n for n in robot.worked if n.endswith("query-0")]) == 3  # two failures, then the plan
+        _finished(client, token)
+
+
+def test_a_job_whose_process_died_is_taken_over_once_its_lease_runs_out(slow_client) -> None:
     token = _to_first_query(slow_client)
+    ctx = slow_client.ctx
+    ctx.runtime.stop()  # this "process" stops taking jobs: the work_out job stays stored
     assert slow_client.post("/api/v1/me/execution", headers=bearer(token)).status_code == 200
-    # As if the process working it out had died: the plan never comes, and the grace period has passed.
-    stored = _stored_execution(slow_client, token)
-    assert stored["plan"] is None
-    from datetime import datetime
-
-    from tableteach.services.state import current_task, participant_and_study
-
-    long_ago = datetime.fromisoformat(stored["started_at"]) - timedelta(seconds=executions.PREPARE_GRACE_SECONDS + 1)
-    with slow_client.ctx.db.write() as s:
-        participant, _ = participant_and_study(s, token)
-        ts = current_task(s, participant)
-        ts.execution = {**ts.execution, "started_at": long_ago.isoformat()}
+    with ctx.db.write() as s:  # as if a process had claimed it and died: its lease has run out
+        job = s.query(JobRow).filter(JobRow.kind == WORK_OUT).one()
+        job.claimed_by, job.claimed_until = "dead-process", utcnow() - timedelta(seconds=1)
         s.commit()
-    state = slow_client.get("/api/v1/me", headers=bearer(token)).json()
-    assert _stored_execution(slow_client, token)["plan"] is not None  # worked out in that request
-    deadline = time.monotonic() + 10
-    while state["execution"]["status"] != "finished":
-        assert time.monotonic() < deadline
-        time.sleep(0.02)
-        state = slow_client.get("/api/v1/me", headers=bearer(token)).json()
-    slow_client.ctx.robot.release_plans.set()  # the late background plan must not overwrite the stored one
-    time.sleep(0.2)
-    assert _stored_execution(slow_client, token)["status"] == "finished"
+    from tableteach.services.context import Context, default_runtime
 
-
-def test_a_plan_made_ahead_is_stored_without_blocking_the_request_that_starts_it(slow_client) -> None:
-    token = _to_first_query(slow_client)
-    slow_client.ctx.robot.release_plans.set()  # prepare() now answers with a finished plan
-    answers: list[Any] = []
-    request = threading.Thread(target=lambda: answers.append(
-        slow_client.post("/api/v1/me/execution", headers=bearer(token))), daemon=True)
-    request.start()
-    request.join(timeout=10)
-    assert answers and answers[0].status_code == 200, "starting the execution hung"
-    deadline = time.monotonic() + 10
-    while _stored_execution(slow_client, token)["plan"] is None:
-        assert time.monotonic() < deadline, "the plan made ahead was never stored"
-        time.sleep(0.02)
-
-
-def test_a_process_asked_about_an_execution_another_was_working_out_takes_it_over(slow_client) -> None:
-    token = _to_first_query(slow_client)
-    assert slow_client.post("/api/v1/me/execution", headers=bearer(token)).status_code == 200
-    assert _stored_execution(slow_client, token)["plan"] is None  # the first "process" never finishes it
-    slow_client.ctx.robot = SlowRobot()  # another process, whose robot has never heard of the execution
-    slow_client.ctx.robot.release_plans.set()
-    state = slow_client.get("/api/v1/me", headers=bearer(token)).json()
-    assert state["execution"]["status"] == "running"
-    deadline = time.monotonic() + 5  # far sooner than the grace period
-    while _stored_execution(slow_client, token)["plan"] is None:
-        assert time.monotonic() < deadline, "the second process did not take the execution over"
-        time.sleep(0.02)
-    assert slow_client.ctx.robot.prepared == [f"participant-{_uid(slow_client, token)}/task-0/query-0"]
+    other_robot = SlowRobot()
+    other_robot.release_plans.set()
+    other = Context(ctx.db, other_robot, ctx.settings, notifier=ctx.notifier, runtime=default_runtime())
+    other.runtime.sweep_seconds = 0
+    other.runtime.start(other)
+    try:
+        _until(lambda: _stored_execution(slow_client, token)["plan"] is not None,
+               "the second process did not take the execution over")
+        assert other_robot.worked == [f"participant-{_uid(slow_client, token)}/task-0/query-0"]
+        with ctx.db.read() as s:
+            assert [j.kind for j in job_rows.pending_jobs(s) if j.kind == WORK_OUT] == []
+    finally:
+        other.runtime.stop()

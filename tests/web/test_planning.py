@@ -1,4 +1,5 @@
-"""Planning ahead: robot turns are planned off the request path, once, and exactly as a request would."""
+"""Planning ahead: robot turns are planned off the request path (a plan_ahead job), once, and exactly as a request
+would."""
 
 from __future__ import annotations
 
@@ -7,7 +8,7 @@ import time
 from typing import Any
 
 from tableteach.core import session as core
-from tableteach.services.planning import PLANNER_THREAD, Planner, step_of
+from tableteach.services.planning import Planner, step_of
 
 from .helpers import bearer, demonstrate, make_study, to_teaching
 
@@ -34,42 +35,24 @@ class RecordingPlan:
         return step_of(state_json)
 
 
-def test_a_robot_turn_is_planned_on_the_planner_thread_and_once() -> None:
+def test_two_threads_asking_for_one_plan_make_it_once() -> None:
     state_json = _state_at_first_query().to_json()
     plan = RecordingPlan(seconds=0.3)
     planner = Planner(plan)
-    try:
-        planner.plan_ahead(state_json)
-        planner.plan_ahead(state_json)  # already under way: not planned twice
-        step = planner.step(state_json)  # waits for the plan being made
-        assert [c[0] for c in plan.calls] == [state_json]
-        assert plan.calls[0][1].startswith(PLANNER_THREAD)
-        assert step.kind == "query" and step.robot_execution is not None
-    finally:
-        planner.shutdown()
-
-
-def test_states_without_a_robot_turn_are_not_planned_ahead() -> None:
-    config = core.SessionConfig(task="dinner", prior="chains-2020-sat", protocol="active", n_practice=1,
-                                n_demonstrations=1, n_queries=1, n_tests=0, seed=1)
-    plan = RecordingPlan()
-    planner = Planner(plan)
-    try:
-        state_json = core.start(config).to_json()  # a practice trial comes next
-        planner.plan_ahead(state_json)
-        assert plan.calls == [] and state_json not in planner._plans  # decided before anything is submitted
-    finally:
-        planner.shutdown()
+    steps: list[core.Step] = []
+    threads = [threading.Thread(target=lambda: steps.append(planner.step(state_json))) for _ in range(2)]
+    for thread in threads:
+        thread.start()
+    for thread in threads:
+        thread.join(timeout=60)
+    assert [c[0] for c in plan.calls] == [state_json]
+    assert len(steps) == 2 and steps[0] is steps[1] and steps[0].robot_execution is not None
+    assert planner.planned(state_json)
 
 
 def test_the_plan_made_ahead_is_the_plan_a_request_would_make() -> None:
     state_json = _state_at_first_query(seed=11).to_json()
-    planner = Planner()
-    try:
-        planner.plan_ahead(state_json)
-        ahead = planner.step(state_json)
-    finally:
-        planner.shutdown()
+    ahead = Planner().step(state_json)
     # A fresh state object and cleared caches: the plan is recomputed from nothing.
     core.next_step.cache_clear()
     fresh = core.next_step(core.SessionState.from_json(state_json))
@@ -78,41 +61,36 @@ def test_the_plan_made_ahead_is_the_plan_a_request_would_make() -> None:
     assert ahead.p_acceptable == fresh.p_acceptable
 
 
-def test_a_failed_plan_ahead_is_made_again_in_the_request() -> None:
+def test_a_failed_plan_is_made_again_by_the_next_caller() -> None:
     state_json = _state_at_first_query().to_json()
     attempts: list[str] = []
 
     def flaky(js: str) -> core.Step:
-        attempts.append(threading.current_thread().name)
+        attempts.append(js)
         if len(attempts) == 1:
             raise RuntimeError("planning failed")
         return step_of(js)
 
     planner = Planner(flaky)
     try:
-        planner.plan_ahead(state_json)
-        step = planner.step(state_json)
-        assert step.robot_execution is not None
-        assert len(attempts) == 2 and attempts[0].startswith(PLANNER_THREAD)
-        assert not attempts[1].startswith(PLANNER_THREAD)
-    finally:
-        planner.shutdown()
+        planner.step(state_json)
+    except RuntimeError:
+        pass
+    assert not planner.planned(state_json)
+    assert planner.step(state_json).robot_execution is not None and len(attempts) == 2
 
 
-def test_the_server_plans_the_query_while_the_participant_reads_and_the_execution_uses_that_plan(
-    app_client: Any,
-) -> None:
+def test_the_server_plans_the_query_on_a_runtime_job_and_the_execution_uses_that_plan(app_client: Any) -> None:
     plan = RecordingPlan()
-    app_client.ctx.planner.shutdown()
     app_client.ctx.planner = Planner(plan)
     token, state = to_teaching(app_client, make_study(app_client, n_practice=0, n_demonstrations=1, n_queries=2))
     assert state["step"]["kind"] == "demonstration"
     state = demonstrate(app_client, token, ["dinner_plate", "small_plate"])
     assert state["step"]["kind"] == "query" and state["execution"]["status"] == "not_started"
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + 60
     while not plan.calls and time.monotonic() < deadline:
         time.sleep(0.01)
-    assert len(plan.calls) == 1 and plan.calls[0][1].startswith(PLANNER_THREAD)
+    assert len(plan.calls) == 1 and plan.calls[0][1].startswith("runtime-jobs")
     response = app_client.post("/api/v1/me/execution", headers=bearer(token))
     assert response.status_code == 200, response.text
     planned = step_of(plan.calls[0][0])
@@ -120,9 +98,28 @@ def test_the_server_plans_the_query_while_the_participant_reads_and_the_executio
     assert len(plan.calls) == 1  # the request used the plan made ahead
 
 
-def test_planning_ahead_never_fails_the_action_that_stored_the_state() -> None:
-    planner = Planner()
-    try:
-        planner.plan_ahead("{not a session")  # logged, not raised: the action was already committed
-    finally:
-        planner.shutdown()
+def test_a_plan_ahead_job_for_a_broken_state_is_retried_not_fatal(app_client: Any) -> None:
+    """A job whose handler fails stays stored and is tried again; the action that wrote it had committed."""
+    from tableteach.db import jobs as job_rows
+    from tableteach.services.runtime import PLAN_AHEAD
+
+    token, _state = to_teaching(app_client, make_study(app_client, n_practice=0, n_demonstrations=1, n_queries=1))
+    ctx = app_client.ctx
+    pid = app_client.get("/api/v1/me", headers=bearer(token)).json()["participant_id"]
+    failures = ctx.runtime.failed_count
+    ctx.runtime.handlers = {**ctx.runtime.handlers, PLAN_AHEAD: _broken}
+    with ctx.db.write() as s:
+        job_rows.add_job(s, kind=PLAN_AHEAD, participant_id=pid, task_index=0, payload={"state": "{not a session"})
+        s.commit()
+    ctx.runtime.wake()
+    deadline = time.monotonic() + 60
+    while ctx.runtime.failed_count < failures + 2 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert ctx.runtime.failed_count >= failures + 2  # tried, failed, tried again after its backoff
+    with ctx.db.read() as s:
+        (job,) = [j for j in job_rows.pending_jobs(s, participant_id=pid) if j.kind == PLAN_AHEAD]
+        assert job.attempts >= 2 and "planning failed" in (job.last_error or "")
+
+
+def _broken(_ctx: Any, _job: Any) -> None:
+    raise RuntimeError("planning failed")

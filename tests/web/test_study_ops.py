@@ -305,7 +305,12 @@ def test_idle_past_the_timeout_is_screened_out_and_kept(app_client) -> None:
     assert state["completion"] == {"code": "LATE", "reason": "timeout", "learned": [],
                                    "redirect_url": URL.replace("{code}", "LATE")}
     people = {int(p["participant_id"]): p for p in rows(app_client, study, "participants")}
-    assert [p["timed_out"] for p in people.values()] == ["true", "true"]  # the other one by the export's sweep
+    assert [p["timed_out"] for p in people.values()] == ["true", "false"]  # an export only reads
+    from tableteach.services.timeouts import sweep_timeouts
+
+    assert sweep_timeouts(app_client.ctx) == 1  # the runtime's periodic sweep screens the other one out
+    people = {int(p["participant_id"]): p for p in rows(app_client, study, "participants")}
+    assert [p["timed_out"] for p in people.values()] == ["true", "true"]
     events = rows(app_client, study, "events")
     assert {e["kind"] for e in events} >= {"instructions_read", "task_started", "screened_out"}
 

@@ -1,9 +1,9 @@
 """The participant page's server side with the MuJoCo robot: the viser websocket proxy, the page and its
-assets, the one-tab lease, click-free REST sessions that save recordings, and idle views being stopped."""
+assets, the one-tab lease, click-free REST sessions that save recordings, one viser server per process whose
+views are freed when they close, views rebuilt from the stored placements, and clicks queued to the runtime."""
 
 from __future__ import annotations
 
-import socket
 import time
 import warnings
 from collections.abc import Iterator
@@ -137,18 +137,81 @@ def test_a_rest_session_with_the_mujoco_robot_records_every_step(mujoco_client):
     assert mujoco_client.ctx.robot.scene(f"{state['participant_id']}/0") is None
 
 
-def test_an_unwatched_view_is_stopped_after_the_idle_timeout(tmp_path):
-    from tableteach.sim.robot import MujocoRobot
+def _viewer(client: Any, token: str) -> Any:
+    return client.websocket_connect(f"/p/{token}/viewer", subprotocols=[f"viser-v{version('viser')}"])
 
-    robot = MujocoRobot(data_dir=tmp_path, idle_seconds=0.3)
-    try:
-        port = robot.open_view("7/0", on_click=None)
-        assert robot.scene("7/0")[1] is not None
-        deadline = time.monotonic() + 10
-        while robot.scene("7/0") is not None and time.monotonic() < deadline:
-            time.sleep(0.1)
-        assert robot.scene("7/0") is None  # never used for placing: the table is dropped with its view
-        with socket.socket() as s:
-            s.bind(("127.0.0.1", port))  # the viser server released its port
-    finally:
-        robot.shutdown()
+
+def _camera(ws: Any) -> None:
+    """Report a camera as viser's client does on connecting (viser counts a browser only after that)."""
+    import msgpack
+
+    ws.send_bytes(msgpack.packb({"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0],
+                                 "position": [2.0, 0.0, 1.5], "image_height": 600, "image_width": 800,
+                                 "fov": 0.9, "near": 0.01, "far": 100.0, "look_at": [0.0, 0.0, 0.4],
+                                 "up_direction": [0.0, 0.0, 1.0]}))
+
+
+def _until(condition: Any, what: str, within: float = 60.0) -> None:
+    deadline = time.monotonic() + within
+    while not condition():
+        assert time.monotonic() < deadline, what
+        time.sleep(0.05)
+
+
+def test_every_view_of_a_process_is_a_client_of_one_viser_server_and_is_freed_when_it_closes(mujoco_client):
+    study_id = make_study(mujoco_client, n_practice=0)
+    robot = mujoco_client.ctx.robot
+    tokens = [to_teaching(mujoco_client, study_id)[0] for _ in range(3)]
+    with _viewer(mujoco_client, tokens[0]) as a, _viewer(mujoco_client, tokens[1]) as b, \
+            _viewer(mujoco_client, tokens[2]) as c:
+        for ws in (a, b, c):
+            assert len(ws.receive_bytes()) > 0
+            _camera(ws)
+        _until(lambda: robot.view_count() == 3, "the three browsers never joined the one viser server")
+        ports = {robot.open_view(f"{pid}/0", None).port for pid in (1, 2, 3)}
+        assert len(ports) == 1  # one server, one port, for every table
+    _until(lambda: robot.view_count() == 0, "closed views were not freed")
+
+
+def test_a_view_opened_after_a_restart_shows_the_stored_placements(mujoco_client):
+    study_id = make_study(mujoco_client, n_practice=0, n_demonstrations=2)
+    token, state = to_teaching(mujoco_client, study_id)
+    h = bearer(token)
+    for obj in ("dinner_plate", "bowl"):
+        assert mujoco_client.post("/api/v1/me/placements", json={"object": obj}, headers=h).status_code == 200
+    key = f"{state['participant_id']}/0"
+    mujoco_client.ctx.robot.release(key)  # as after a restart: the robot holds no table
+    assert mujoco_client.ctx.robot.placed(key) is None
+    with _viewer(mujoco_client, token) as ws:
+        assert len(ws.receive_bytes()) > 0
+        assert mujoco_client.ctx.robot.placed(key) == ("dinner_plate", "bowl")  # rebuilt before it was shown
+        world = mujoco_client.ctx.robot.scene(key)
+        assert world is not None and set(world.labels()) == {"dinner_plate", "bowl"}
+
+
+def test_a_click_in_the_view_is_carried_out_on_the_runtime_not_on_visers_thread(mujoco_client):
+    import threading
+
+    study_id = make_study(mujoco_client, n_practice=0)
+    token, state = to_teaching(mujoco_client, study_id)
+    key = f"{state['participant_id']}/0"
+    ctx = mujoco_client.ctx
+    threads: list[str] = []
+    original = ctx.runtime.submit
+
+    def noted(action: Any) -> Any:
+        def run() -> Any:
+            threads.append(threading.current_thread().name)
+            return action()
+        return original(run)
+
+    ctx.runtime.submit = noted  # type: ignore[method-assign]
+    from tableteach import services
+
+    services.open_viewer(ctx, token)  # arms the table's clicks, as the page's viewer does on connecting
+    ctx.robot.clicked(key, "fork")  # what viser's click callback calls, on viser's thread
+    _until(lambda: mujoco_client.get("/api/v1/me", headers=bearer(token)).json()["demonstration"]["placed"]
+           == ["fork"], "the click was never placed")
+    assert threads and threads[0].startswith("runtime-action")
+    _until(lambda: ctx.robot.activity(key) is not None and not ctx.robot.activity(key).moving,
+           "the table never took clicks again")

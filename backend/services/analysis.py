@@ -14,24 +14,22 @@ import statistics
 from functools import lru_cache
 from typing import Any
 
-from .core import session as core
-from .core.domain import get_domain
-from .db import analysis_queries as aq
-from .db import repository as repo
-from .db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
-from .errors import NotFound
-from .services import Context
-from .services.context import iso
-from .services.lifecycle import expire_timeouts
-from .services.monitoring import (
+from ..core import session as core
+from ..core.domain import get_domain
+from ..db import analysis_queries as aq
+from ..db import repository as repo
+from ..db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
+from ..errors import NotFound
+from .context import Context, iso
+from .monitoring import (
     belief_view,
     FINISHED,
     inactive_minutes,
     participant_row,
     study_participant,
 )
-from .services.planning import session_of
-from .services.studies import study_row
+from .planning import session_of
+from .studies import study_row
 
 TOP_K = 5
 
@@ -48,9 +46,6 @@ def _step_of(state: core.SessionState) -> dict[str, Any]:
 def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | None = None) -> dict[str, Any]:
     """Participants with their current step and inactivity; unfinished ones idle past the threshold are dropouts."""
     threshold = ctx.settings.active_minutes if dropout_minutes is None else dropout_minutes
-    with ctx.db.read() as s:
-        study_row(s, study_id)
-    expire_timeouts(ctx, study_id)
     now = utcnow()
     with ctx.db.read() as s:
         study = study_row(s, study_id)
@@ -244,7 +239,7 @@ def _quat_yaw(w: float, x: float, y: float, z: float) -> float:
 @lru_cache(maxsize=1)
 def table_layout() -> dict[str, Any]:
     """The scene seen from above (metres, world frame): both tables, the robot's base, each object's size and poses."""
-    from .sim.scene import (
+    from ..sim.scene import (
         load_scene,  # the sim adapter imports MuJoCo; only replays need it
     )
 
@@ -320,7 +315,7 @@ def _recording_view(saved: Any, objects: tuple[str, ...]) -> dict[str, Any]:
 def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int, step_kind: str,
            step_index: int) -> dict[str, Any]:
     """One step's replay: the recorded poses if the robot saved them, else the trace to replay step by step."""
-    from .sim.recordings import RecordingId, load_recording  # numpy only
+    from ..sim.recordings import RecordingId, load_recording  # numpy only
 
     with ctx.db.read() as s:
         study_row(s, study_id)

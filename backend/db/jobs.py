@@ -1,0 +1,85 @@
+"""The jobs table's queries (services.runtime): add in an action's transaction, claim with a lease, finish, retry.
+
+A claim is a lease: the job is taken by one process until `claimed_until`; if that process dies, any live
+process claims it again once the lease has run out. On PostgreSQL the claim skips rows another process is
+claiming at the same moment (FOR UPDATE SKIP LOCKED); SQLite serialises writers, so one claim runs at a time.
+Like the other repository functions these flush but never commit.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from datetime import datetime, timedelta
+from typing import Any
+
+from sqlalchemy import delete, func, or_, select, update
+from sqlalchemy.orm import Session
+
+from .tables import JobRow, utcnow
+
+
+@dataclass(frozen=True)
+class ClaimedJob:
+    """A job this process holds until its lease ends: what to do, for whom, and how often it was tried."""
+
+    id: int
+    kind: str
+    participant_id: int
+    task_index: int | None
+    payload: dict[str, Any]
+    attempts: int
+
+
+def add_job(session: Session, *, kind: str, participant_id: int, task_index: int | None,
+            payload: dict[str, Any], due_at: datetime | None = None) -> None:
+    """Record work to do once this transaction commits (at due_at, default now)."""
+    session.add(JobRow(kind=kind, participant_id=participant_id, task_index=task_index, payload=payload,
+                       due_at=due_at or utcnow(), attempts=0))
+
+
+def claim_jobs(session: Session, *, owner: str, lease_seconds: float, limit: int,
+               now: datetime | None = None) -> list[ClaimedJob]:
+    """Take up to `limit` due jobs that nobody holds (or whose holder's lease ran out), oldest due first."""
+    now = now or utcnow()
+    query = (select(JobRow).where(JobRow.due_at <= now,
+                                  or_(JobRow.claimed_until.is_(None), JobRow.claimed_until < now))
+             .order_by(JobRow.due_at, JobRow.id).limit(limit))
+    if session.get_bind().dialect.name != "sqlite":
+        query = query.with_for_update(skip_locked=True)
+    rows = list(session.execute(query).scalars())
+    until = now + timedelta(seconds=lease_seconds)
+    for row in rows:
+        row.claimed_by, row.claimed_until, row.attempts = owner, until, row.attempts + 1
+    session.flush()
+    return [ClaimedJob(r.id, r.kind, r.participant_id, r.task_index, dict(r.payload), r.attempts) for r in rows]
+
+
+def finish_job(session: Session, *, job_id: int) -> None:
+    """The job is done: remove it."""
+    session.execute(delete(JobRow).where(JobRow.id == job_id))
+
+
+def retry_job(session: Session, *, job_id: int, due_at: datetime, error: str) -> None:
+    """The job failed: release it to run again at due_at, keeping the error."""
+    session.execute(update(JobRow).where(JobRow.id == job_id)
+                    .values(due_at=due_at, claimed_by=None, claimed_until=None, last_error=error[:2000]))
+
+
+def release_claims(session: Session) -> int:
+    """Free every claim (a process starting on SQLite, the only process there: its predecessor's claims are void)."""
+    result = session.execute(update(JobRow).where(JobRow.claimed_by.is_not(None))
+                             .values(claimed_by=None, claimed_until=None))
+    return int(result.rowcount or 0)  # type: ignore[attr-defined]
+
+
+def next_due(session: Session) -> datetime | None:
+    """When the earliest job is due (claimed or not), or None without jobs."""
+    return session.execute(select(func.min(JobRow.due_at))).scalar_one_or_none()
+
+
+def pending_jobs(session: Session, *, participant_id: int | None = None) -> list[JobRow]:
+    """Jobs not yet done (all, or one participant's), oldest first; for tests, tools and the dashboard."""
+    query = select(JobRow).order_by(JobRow.due_at, JobRow.id)
+    if participant_id is not None:
+        query = query.where(JobRow.participant_id == participant_id)
+    return list(session.execute(query).scalars())

@@ -1,0 +1,91 @@
+"""The recording store seam: where the robot's recorded motions are kept, named by participant uid and step.
+
+The services name recordings with RecordingId and reach the files through RecordingStore only; the files
+themselves are written by the robot (tableteach.sim). FileRecordingStore keeps them under
+<data_dir>/recordings/participant-<uid>/task-<i>/<kind>-<j>.{npz,json,viser}.
+"""
+
+from __future__ import annotations
+
+import re
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Protocol
+
+FOLDER = "recordings"
+VISER_SUFFIX = ".viser"
+STEP_KINDS = ("practice", "demonstration", "query", "test")
+_UID = re.compile(r"^[0-9a-f]{32}$")
+_NAME = re.compile(r"^participant-([0-9a-f]{32})/task-(\d+)/(practice|demonstration|query|test)-(\d+)$")
+
+
+def check_uid(uid: str) -> str:
+    """The uid itself if it is 32 lowercase hex digits (so it is safe as a folder name), else ValueError."""
+    if not isinstance(uid, str) or not _UID.match(uid):
+        raise ValueError(f"participant uid {uid!r}: expected 32 lowercase hex digits")
+    return uid
+
+
+@dataclass(frozen=True, order=True)
+class RecordingId:
+    """Which step of which participant a recording shows (indices count from 0, as in the API)."""
+
+    participant_uid: str
+    task_index: int
+    step_kind: str
+    step_index: int
+
+    def __post_init__(self) -> None:
+        check_uid(self.participant_uid)
+        if self.step_kind not in STEP_KINDS:
+            raise ValueError(f"step_kind is {self.step_kind!r}: expected one of {', '.join(STEP_KINDS)}")
+        if min(self.task_index, self.step_index) < 0:
+            raise ValueError(f"{self} has a negative index: expected whole numbers >= 0")
+
+    @property
+    def name(self) -> str:
+        """The relative path without suffix, e.g. participant-<uid>/task-0/query-1."""
+        return f"participant-{self.participant_uid}/task-{self.task_index}/{self.step_kind}-{self.step_index}"
+
+    @classmethod
+    def parse(cls, name: str) -> RecordingId:
+        """The id a name() string stands for."""
+        match = _NAME.match(name)
+        if match is None:
+            raise ValueError(f"recording name {name!r}: expected participant-<uid>/task-<i>/<kind>-<j> "
+                             "with a 32-hex-digit uid")
+        uid, task, kind, index = match.groups()
+        return cls(uid, int(task), kind, int(index))
+
+
+class RecordingStore(Protocol):
+    """What the services need of the recordings: the browser's file of a step, and erasure."""
+
+    def playable(self, rid: RecordingId) -> Path:
+        """Where the step's .viser file (for the browser) is or will be."""
+        ...
+
+    def delete_participant(self, participant_uid: str) -> int:
+        """Remove every recording of one participant; the number of files removed."""
+        ...
+
+
+class FileRecordingStore:
+    """Recordings as files under data_dir (one folder per participant)."""
+
+    def __init__(self, data_dir: Path | str) -> None:
+        self.data_dir = Path(data_dir)
+
+    def playable(self, rid: RecordingId) -> Path:
+        """The step's .viser file path."""
+        return (self.data_dir / FOLDER / rid.name).with_suffix(VISER_SUFFIX)
+
+    def delete_participant(self, participant_uid: str) -> int:
+        """Remove the participant's folder; the number of files it held."""
+        folder = self.data_dir / FOLDER / f"participant-{check_uid(participant_uid)}"
+        if not folder.exists():
+            return 0
+        removed = sum(1 for path in folder.rglob("*") if path.is_file())
+        shutil.rmtree(folder)
+        return removed
