@@ -11,7 +11,7 @@ import re
 import shutil
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 FOLDER = "recordings"
 VISER_SUFFIX = ".viser"
@@ -70,9 +70,18 @@ class RecordingStore(Protocol):
         """Remove every recording of one participant; the number of files removed."""
         ...
 
+    def layout(self) -> dict[str, Any]:
+        """The scene seen from above (tables, robot base, objects' footprints, starts and slots), for replays."""
+        ...
+
+    def top_view(self, rid: RecordingId) -> dict[str, Any] | None:
+        """A recorded step's poses from above, thinned for the dashboard, or None if none was saved."""
+        ...
+
 
 class FileRecordingStore:
-    """Recordings as files under data_dir (one folder per participant)."""
+    """Recordings as files under data_dir (one folder per participant), without the scene's geometry (the
+    composition root gives the services tableteach.sim.top_view's store, which adds it)."""
 
     def __init__(self, data_dir: Path | str) -> None:
         self.data_dir = Path(data_dir)
@@ -89,3 +98,11 @@ class FileRecordingStore:
         removed = sum(1 for path in folder.rglob("*") if path.is_file())
         shutil.rmtree(folder)
         return removed
+
+    def layout(self) -> dict[str, Any]:
+        """No scene known here: ValueError (the app is composed with the scene's store)."""
+        raise ValueError("this recording store knows no scene: expected the app's SceneRecordingStore")
+
+    def top_view(self, rid: RecordingId) -> dict[str, Any] | None:
+        """No scene known here, so no top view."""
+        return None

@@ -9,9 +9,7 @@ demonstration or assessed query).
 
 from __future__ import annotations
 
-import math
 import statistics
-from functools import lru_cache
 from typing import Any
 
 from ..core import session as core
@@ -20,6 +18,7 @@ from ..db import analysis_queries as aq
 from ..db import repository as repo
 from ..db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import NotFound
+from ..recording_store import RecordingId
 from .context import Context, iso
 from .monitoring import (
     belief_view,
@@ -232,91 +231,9 @@ def learning_curves(ctx: Context, study_id: str, *, finished_only: bool = False,
 # ====================================================================== replays
 
 
-def _quat_yaw(w: float, x: float, y: float, z: float) -> float:
-    return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
-
-
-@lru_cache(maxsize=1)
-def table_layout() -> dict[str, Any]:
-    """The scene seen from above (metres, world frame): both tables, the robot's base, each object's size and poses."""
-    from ..sim.scene import (
-        load_scene,  # the sim adapter imports MuJoCo; only replays need it
-    )
-
-    model, layout = load_scene()
-    tables = []
-    for name, geom in (("Table A", "table_a_top"), ("Table B", "table_b_top")):
-        g = model.geom(geom)
-        centre = model.body(int(g.bodyid[0])).pos + g.pos
-        tables.append({"name": name, "x": float(centre[0]), "y": float(centre[1]),
-                       "half_x": float(g.size[0]), "half_y": float(g.size[1])})
-    pedestal = model.geom("pedestal")
-    objects = {}
-    for obj in layout.objects:
-        body = model.body(obj)
-        half_x, half_y = _footprint(model, layout.body[obj])
-        objects[obj] = {
-            "shape": "disc" if abs(half_x - half_y) < 0.01 else "bar",
-            "half_x": half_x, "half_y": half_y,
-            "start": {"x": float(body.pos[0]), "y": float(body.pos[1]), "yaw": _quat_yaw(*map(float, body.quat))},
-            "slot": {"x": float(layout.slot[obj].pos[0]), "y": float(layout.slot[obj].pos[1]),
-                     "yaw": layout.slot[obj].yaw},
-        }
-    return {"tables": tables, "robot": {"x": 0.0, "y": 0.0, "radius": float(pedestal.size[0])}, "objects": objects}
-
-
-def _footprint(model: Any, body: int) -> tuple[float, float]:
-    """Half extents in x and y of a body's drawn geoms, in the body's frame (from their rotated bounding boxes)."""
-    xs, ys = [0.0], [0.0]
-    for g in range(model.ngeom):
-        if model.geom_bodyid[g] != body or model.geom_group[g] == 3:  # group 3: collision only, not drawn
-            continue
-        centre, half = model.geom_aabb[g, :3], model.geom_aabb[g, 3:]
-        rot = _quat_matrix(*map(float, model.geom_quat[g]))
-        for sx in (-1, 1):
-            for sy in (-1, 1):
-                for sz in (-1, 1):
-                    corner = [centre[0] + sx * half[0], centre[1] + sy * half[1], centre[2] + sz * half[2]]
-                    xs.append(abs(model.geom_pos[g][0] + sum(rot[0][k] * corner[k] for k in range(3))))
-                    ys.append(abs(model.geom_pos[g][1] + sum(rot[1][k] * corner[k] for k in range(3))))
-    return max(xs), max(ys)
-
-
-def _quat_matrix(w: float, x: float, y: float, z: float) -> list[list[float]]:
-    """Rotation matrix of a unit quaternion (w, x, y, z)."""
-    return [[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-            [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-            [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]]
-
-
-REPLAY_FPS = 15.0
-ARM_BODIES = ("forearm", "hand")  # the elbow and the hand: enough to draw the arm from above
-
-
-def _recording_view(saved: Any, objects: tuple[str, ...]) -> dict[str, Any]:
-    """The objects' and arm's poses at no more than REPLAY_FPS, rounded to 0.1 mm (JSON stays small)."""
-    rec = saved.recording
-    keep = [i for i, b in enumerate(rec.bodies) if b in objects or b in ARM_BODIES]
-    times = rec.times
-    stride = 1
-    if len(times) > 1 and rec.duration > 0:
-        stride = max(1, round((len(times) - 1) / rec.duration / REPLAY_FPS))
-    frames = list(range(0, len(times), stride))
-    if frames and frames[-1] != len(times) - 1:
-        frames.append(len(times) - 1)  # always end on the final state
-    return {
-        "bodies": [rec.bodies[i] for i in keep],
-        "times": [round(float(times[f]), 4) for f in frames],
-        "poses": [[[round(float(v), 4) for v in rec.poses[f, i]] for i in keep] for f in frames],
-        "action_ends": list(saved.action_ends),
-    }
-
-
 def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int, step_kind: str,
            step_index: int) -> dict[str, Any]:
     """One step's replay: the recorded poses if the robot saved them, else the trace to replay step by step."""
-    from ..sim.recordings import RecordingId, load_recording  # numpy only
-
     with ctx.db.read() as s:
         study_row(s, study_id)
         participant = study_participant(s, study_id, participant_id)
@@ -329,13 +246,9 @@ def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int,
     execution = found[0]
     if execution["trace"] is None:
         raise NotFound(f"{step_kind} {step_index} of task {task_index} has not finished yet; replay it when it has")
-    layout = table_layout()
-    recording = None
-    try:
-        saved = load_recording(ctx.settings.data_dir, RecordingId(uid, task_index, step_kind, step_index))
-        recording = _recording_view(saved, tuple(layout["objects"]))
-    except FileNotFoundError:
-        pass  # the trace robot saves none: the dashboard replays the trace instead
+    layout = ctx.store.layout()
+    # The trace robot saves no recording: the dashboard replays the trace instead.
+    recording = ctx.store.top_view(RecordingId(uid, task_index, step_kind, step_index))
     return {"task_index": task_index, "kind": step_kind, "index": step_index,
             "source": "trace" if recording is None else "recording", "objects": execution["objects"] or [],
             "trace": execution["trace"], "acceptable": execution["acceptable"], "layout": layout,

@@ -109,13 +109,14 @@ class Context:
         self.db.dispose()
 
     @staticmethod
-    def from_settings(settings: Settings, robot: Robot | None = None) -> "Context":
-        """Open the database and its notifier; the robot is the one given (the app composes it) or else the trace
-        robot."""
+    def from_settings(settings: Settings, robot: Robot | None = None,
+                      recordings: RecordingStore | None = None) -> "Context":
+        """Open the database and its notifier; the robot and recording store are the ones given (the app composes
+        them), or else the trace robot and plain files."""
         if robot is None:
             robot = TraceRobot("dinner", settings.robot_seconds_per_object)
         return Context(Database(settings.database_url, busy_seconds=settings.database_busy_seconds), robot, settings,
-                       notifier=make_notifier(settings.database_url))
+                       notifier=make_notifier(settings.database_url), recordings=recordings)
 
 
 def aware(value: datetime | None) -> datetime | None:

@@ -284,6 +284,11 @@ class MujocoRobot:
         hub = self._hub
         return 0 if hub is None else hub.views()
 
+    def view_clients(self, key: str) -> list[object]:
+        """The viser clients showing this table (for tests and tools that look, e.g. at a browser's camera)."""
+        hub = self._hub
+        return [] if hub is None else list(hub.clients(key))
+
     def scene(self, key: str) -> MujocoWorld | None:
         """The table's world, for tests and tools that look (never move anything through it)."""
         with self._lock:

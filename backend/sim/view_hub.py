@@ -92,6 +92,10 @@ class ViewHub:
         with self._lock:
             return sum(1 for view in self._views.values() if view.key == key)
 
+    def clients(self, key: str) -> list[viser.ClientHandle]:
+        """The viser clients showing this table (for tests and tools that look: never move anything through them)."""
+        return [view.client for view in self._of(key)]
+
     def views(self) -> int:
         """Browsers connected to any table."""
         with self._lock:

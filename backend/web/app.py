@@ -16,7 +16,7 @@ from . import analysis, dashboard, motion, viewer
 from .auth import FailureLimiter, experimenter_checker
 from .deps import require_experimenter
 from .limits import BodyLimit
-from .robots import make_robot
+from .robots import make_recording_store, make_robot
 from .schemas import error_responses
 
 DESCRIPTION = """Study server for teaching a robot to set a dinner table from demonstrations and verdicts.
@@ -38,7 +38,7 @@ def _common_errors(router: APIRouter) -> dict[int | str, dict[str, Any]]:
 def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI:
     """The FastAPI application for these settings (ValueError if the experimenter secret is unacceptable)."""
     checker, dev_token = experimenter_checker(settings)
-    ctx = context or Context.from_settings(settings, make_robot(settings))
+    ctx = context or Context.from_settings(settings, make_robot(settings), make_recording_store(settings))
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:

@@ -1,8 +1,10 @@
-"""Where the app gets its robot: the trace robot, or the MuJoCo one (imported only when the settings name it)."""
+"""The composition root's adapters from tableteach.sim (the only module outside it that imports it): the robot (the
+trace robot, or the MuJoCo one, imported only when the settings name it), the recording store and viser's page."""
 
 from __future__ import annotations
 
 from ..config import Settings
+from ..recording_store import RecordingStore
 from ..robot import Robot, TraceRobot
 
 
@@ -15,3 +17,17 @@ def make_robot(settings: Settings) -> Robot:
 
         return MujocoRobot(speed=settings.robot_speed, data_dir=settings.data_dir, workers=settings.robot_workers)
     raise ValueError(f"unknown robot {settings.robot!r}; expected 'trace' or 'mujoco'")
+
+
+def make_recording_store(settings: Settings) -> RecordingStore:
+    """The recording store the services use: files under the data folder, with the scene's top view."""
+    from ..sim.top_view import scene_store  # MuJoCo is imported only when a replay asks for the layout
+
+    return scene_store(settings.data_dir)
+
+
+def viewer_client_html() -> bytes:
+    """viser's built client page (the participant's 3D view and recorded-motion player)."""
+    from ..sim.viewer_client import client_html
+
+    return client_html()

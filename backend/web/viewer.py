@@ -2,9 +2,9 @@
 to the process's viser server on 127.0.0.1, one scene per browser), the robot's activity, change notices as
 server-sent events, and the one-tab lease.
 
-This module and tableteach.sim are the only code that knows viser's ports. The proxy checks the
-participant's token and forwards viser's version subprotocol (Sec-WebSocket-Protocol); without it
-viser closes the connection with 1002 "Version mismatch".
+This module and tableteach.sim are the only code that knows viser's ports (the robot gives the proxy a
+ViewAddress). The proxy checks the participant's token and forwards viser's version subprotocol
+(Sec-WebSocket-Protocol); without it viser closes the connection with 1002 "Version mismatch".
 """
 
 from __future__ import annotations
@@ -29,6 +29,7 @@ from .. import services
 from ..errors import NotAuthenticated
 from .deps import ContextDep, IdempotencyKey, TokenDep
 from .motion import playback_url
+from .robots import viewer_client_html
 from .schemas import ParticipantState, StepGuard, error_responses
 
 log = logging.getLogger(__name__)
@@ -95,9 +96,7 @@ def participant_client_html(raw: bytes) -> bytes:
 
 @lru_cache(maxsize=1)
 def _client_bytes() -> tuple[bytes, bytes]:
-    from ..sim.viewer_client import client_html
-
-    raw = participant_client_html(client_html())
+    raw = participant_client_html(viewer_client_html())
     return raw, gzip.compress(raw, compresslevel=6)
 
 

@@ -10,10 +10,12 @@ import viser.transforms as vtf
 
 
 def wait_for_camera(server: Any, timeout: float = 60.0) -> Any:
-    """The camera of the first browser connected to a ViserServer (once it has reported one)."""
+    """The camera of the first browser connected to a ViserServer, or of the clients a callable lists (once it has
+    reported one)."""
+    clients = server if callable(server) else (lambda: list(server.get_clients().values()))
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        for client in server.get_clients().values():
+        for client in clients():
             try:
                 client.camera.fov  # noqa: B018 - raises until the browser has reported its camera
                 return client.camera

@@ -40,20 +40,20 @@ def _participant_id(server, token: str) -> int:
     return services.participant_state(server.ctx, token)["participant_id"]
 
 
-def _scene(server, key: str, timeout: float = 30.0):
+def _scene(server, key: str, timeout: float = 60.0):
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        scene = server.ctx.robot.scene(key)
-        if scene is not None and scene[1] is not None:
-            return scene
+        world = server.ctx.robot.scene(key)
+        if world is not None and server.ctx.robot.view_clients(key):
+            return world
         time.sleep(0.1)
-    raise TimeoutError(f"the robot has no view of table {key}: expected the page to open one")
+    raise TimeoutError(f"no browser shows table {key}: expected the page to open its view")
 
 
 def _click_object(page, server, key: str, obj: str) -> float:
     """Click an object in the embedded viser view (its position projected through the browser's camera); when."""
-    world, view = _scene(server, key)
-    camera = wait_for_camera(view.server)
+    world = _scene(server, key)
+    camera = wait_for_camera(lambda: server.ctx.robot.view_clients(key))
     canvas = page.frame_locator("#viewer-frame").locator("canvas").first
     canvas.scroll_into_view_if_needed()
     box = canvas.bounding_box()
