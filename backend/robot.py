@@ -85,6 +85,11 @@ class Robot(Protocol):
         """The participant places one object; the labels afterwards. ValueError if it cannot be placed."""
         ...
 
+    def restore(self, key: str, placed: Sequence[str]) -> None:
+        """Rebuild the table holding exactly these placements, showing the result but not the motion (a table
+        lost to a restart, another process, or freed while idle)."""
+        ...
+
     def placed(self, key: str) -> tuple[str, ...] | None:
         """Objects placed on this table so far, or None if the robot has no table for the key (e.g. after a restart)."""
         ...
@@ -175,6 +180,12 @@ class TraceRobot:
             history = self.domain.step(tuple(table.placed), obj)
             table.placed = list(history)
             return self.domain.labels(history)
+
+    def restore(self, key: str, placed: Sequence[str]) -> None:
+        """The table holding exactly these placements."""
+        self.reset(key)
+        for obj in placed:
+            self.place(key, obj)
 
     def placed(self, key: str) -> tuple[str, ...] | None:
         """Objects placed so far, or None for an unknown table."""

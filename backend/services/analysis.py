@@ -90,8 +90,8 @@ def _task_steps(ts: TaskSessionRow, study: StudyRow) -> list[dict[str, Any]]:
 def _executions(events: list[EventRow]) -> list[dict[str, Any]]:
     """Every practice trial, demonstration, query and test in order, with trace, verdict and learning step."""
     out: list[dict[str, Any]] = []
-    by_step: dict[tuple[int, str, int], dict[str, Any]] = {}
-    learned: dict[int, int] = {}
+    by_step: dict[tuple[int | None, str | None, int | None], dict[str, Any]] = {}
+    learned: dict[int | None, int] = {}
     for e in events:
         pl = e.payload or {}
         if e.kind not in ("place", "demonstration", "execution_started", "execution_finished", "assessment"):

@@ -56,9 +56,9 @@ def settle(ctx: Context, job: job_rows.ClaimedJob) -> None:
         _participant, _study, ts = found
         if position_of(ts.state_json)[:2] != step or placements.settled(ts):
             return
-        placed = list(ts.demo_placed)
+        placed, reported = list(ts.demo_placed), max(0, len(ts.demo_trace) - 1)
     key = robot_key_of(job)
-    placements.sync_robot_table(ctx.robot, key, placed)
+    placements.sync_robot_table(ctx.robot, key, placed, reported=reported)
     trace = ctx.robot.trace(key)
     if trace is None or len(trace) < len(placed) + 1:
         raise RuntimeError(f"the robot reported {0 if trace is None else len(trace)} states for {len(placed)} "

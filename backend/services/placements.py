@@ -32,14 +32,22 @@ def settled(ts: TaskSessionRow) -> bool:
     return not ts.demo_placed or len(ts.demo_trace) >= len(ts.demo_placed) + 1
 
 
-def sync_robot_table(robot: Robot, key: str, placed: Sequence[str]) -> None:
+def sync_robot_table(robot: Robot, key: str, placed: Sequence[str], *, reported: int | None = None) -> None:
     """Make the robot's table hold exactly the stored placements: place the missing ones if what it holds is a
-    prefix of them, else clear it and place them all (a restart, another process, a new demonstration)."""
+    prefix of them, else rebuild it (a restart, another process, a table freed while idle, a new demonstration).
+
+    A rebuild restores the first `reported` placements (default: all) without showing their motion, since the
+    participant has seen them already; the rest are placed as new, with their motion."""
     held = robot.placed(key)
-    if held is None or tuple(placed[: len(held)]) != held or len(held) > len(placed):
-        robot.reset(key)
-        held = ()
-    for obj in placed[len(held):]:
+    if held is None and not placed:
+        return  # nothing to hold: a robot shows a table it does not hold as cleared
+    if held is not None and len(held) <= len(placed) and tuple(placed[: len(held)]) == held:
+        for obj in placed[len(held):]:
+            robot.place(key, obj)
+        return
+    quiet = len(placed) if reported is None else max(0, min(reported, len(placed)))
+    robot.restore(key, placed[:quiet])
+    for obj in placed[quiet:]:
         robot.place(key, obj)
 
 
@@ -71,7 +79,7 @@ def place(a: Action, ts: TaskSessionRow, obj: str, step_kind: str, step_index: i
         return
     if not ts.demo_trace:
         robot.reset(key)
-    sync_robot_table(robot, key, before)
+    sync_robot_table(robot, key, before)  # the trace robot shows nothing: a rebuild costs nothing
     robot.place(key, obj)
     trace = robot.trace(key)
     if trace is not None:

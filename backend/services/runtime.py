@@ -30,6 +30,8 @@ from concurrent.futures import Future, ThreadPoolExecutor
 from datetime import timedelta
 from typing import TYPE_CHECKING
 
+from sqlalchemy.orm import Session
+
 from ..db import jobs as job_rows
 from ..db.tables import utcnow
 from ..errors import TryLater
@@ -250,7 +252,7 @@ class Runtime:
         self.done_count += 1
         self._settle(ctx, lambda s: job_rows.finish_job(s, job_id=job.id))
 
-    def _settle(self, ctx: Context, write: Callable[[object], None]) -> None:
+    def _settle(self, ctx: Context, write: Callable[[Session], None]) -> None:
         """Record a job's end, trying again with backoff while its lease lasts (a busy database); if it never
         succeeds, the lease runs out and the job runs again (handlers are idempotent)."""
         deadline = time.monotonic() + self.lease_seconds

@@ -93,7 +93,13 @@ def finish_demonstration(ctx: Context, token: str, *, expect: Expect, key: str |
         table = robot_key(a.participant, ts.task_index)
         if ts.demo_placed:
             participant, task_index, kind, index = a.participant, ts.task_index, step.kind, step.index
-            a.after(lambda: save_recording(a.ctx, participant, task_index, kind, index))
+            placed = list(ts.demo_placed)
+
+            def save() -> None:  # the robot may have lost the table (a restart): rebuilt quietly first
+                placements.sync_robot_table(a.ctx.robot, table, placed)
+                save_recording(a.ctx, participant, task_index, kind, index)
+
+            a.after(save)
         a.after(lambda: a.ctx.robot.release(table))
         ts.demo_placed, ts.demo_trace = [], []
         _advance(a, ts, new_state)
@@ -142,6 +148,7 @@ def assess_execution(ctx: Context, token: str, *, acceptable: bool | None, expec
             raise Conflict(f"the robot has not started {step.kind} {step.index + 1} yet; start its execution first")
         sync_execution(a.ctx, a.s, a.participant, ts)
         ex = ts.execution
+        assert ex is not None  # sync_execution only ever replaces it
         if ex["status"] != "finished":
             raise Conflict(f"the robot is still carrying out {step.kind} {step.index + 1}; "
                            "assess it once the execution has finished")

@@ -33,6 +33,7 @@ from .physics import MujocoWorld
 from .recording import Recording
 from .recordings import SavedRecording, save_recording
 from .view_hub import ViewHub
+from .world import OBJECTS
 from .work_out import StudioSource, work_out_execution
 from .worker_pool import ExecutionWorkers, WorkerFailed
 
@@ -40,6 +41,8 @@ log = logging.getLogger(__name__)
 
 Labels = frozenset[str]
 FRAME_SECONDS = 1 / 30  # the animator's pace: 30 frames a second to the browsers watching a moving table
+IDLE_WORLD_SECONDS = 120.0  # a table unused this long frees its simulation (rebuilt from the stored placements)
+REAP_EVERY_SECONDS = 5.0
 
 
 def table_seed(key: str) -> int:
@@ -57,12 +60,15 @@ class _Motion:
 
 
 class _Table:
-    """One participant's table; `lock` guards the world and every field."""
+    """One participant's table; `lock` guards the world and every field. Its MujocoWorld (a few MB) exists only
+    while the table is in use: a view needs none, and an idle table's world is dropped (rebuilt on its next use
+    from the stored placements)."""
 
     def __init__(self, key: str) -> None:
         self.key = key
         self.seed = table_seed(key)
-        self.world = MujocoWorld(self.seed)
+        self._world: MujocoWorld | None = None
+        self.last_used = time.monotonic()
         self.lock = threading.RLock()
         self.active = False  # False until reset/place and after release: placed() says None
         self.on_click: Callable[[str], None] | None = None
@@ -70,6 +76,26 @@ class _Table:
         self.pending: deque[_Motion] = deque()  # placements simulated but not yet shown, the first one showing
         self.action_ends: list[float] = []  # simulated time at which each action since the reset ended
         self.speed = 1.0  # the study's playback rate, on top of the robot's own
+
+    @property
+    def world(self) -> MujocoWorld:
+        """The table's simulation, made on first use (caller holds lock)."""
+        self.last_used = time.monotonic()
+        if self._world is None:
+            self._world = MujocoWorld(self.seed)
+        return self._world
+
+    @property
+    def has_world(self) -> bool:
+        return self._world is not None
+
+    def drop_world(self) -> None:
+        """Free the simulation (caller holds lock); placed() says None until the table is used again."""
+        if self._world is not None:
+            self._world.close()
+            self._world = None
+        self.active = False
+        self.action_ends = []
 
     @property
     def moving(self) -> bool:
@@ -89,11 +115,14 @@ class MujocoRobot:
     works_in_background = True
     shows_view = True
 
-    def __init__(self, *, speed: float = 1.0, data_dir: Path | str = "var/data", workers: int = 0) -> None:
+    def __init__(self, *, speed: float = 1.0, data_dir: Path | str = "var/data", workers: int = 0,
+                 idle_seconds: float = IDLE_WORLD_SECONDS) -> None:
         if speed <= 0:
             raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.0")
         self.speed = speed
         self.data_dir = Path(data_dir)
+        self.idle_seconds = idle_seconds
+        self._scratch: MujocoWorld | None = None  # start poses of tables that have no world (first views)
         self._tables: dict[str, _Table] = {}
         self._lock = threading.Lock()
         self._studio = StudioSource()  # executions worked out in this process (workers == 0)
@@ -125,7 +154,8 @@ class MujocoRobot:
         if animator is not None:
             animator.join(timeout=5)
         for table in tables:
-            table.world.close()
+            with table.lock:
+                table.drop_world()
         if hub is not None:
             hub.close()
         if self._workers is not None:
@@ -163,13 +193,27 @@ class MujocoRobot:
         self._changed(table)
         return labels
 
+    def restore(self, key: str, placed: Sequence[str]) -> None:
+        """Rebuild the table holding exactly these placements (simulated again: physics is deterministic), and
+        show the browsers the result without the motion."""
+        table = self._table(key)
+        with table.lock:
+            self._clear(table)
+            table.active = True
+            for obj in placed:
+                table.world.place(obj)
+                table.action_ends.append(float(table.world.data.time))
+            self._show_still(table)
+        self._refresh(table)
+        self._changed(table)
+
     def placed(self, key: str) -> tuple[str, ...] | None:
         """Objects moved off Table A since the last reset, or None for a table the robot does not hold."""
         table = self._get(key)
         if table is None:
             return None
         with table.lock:
-            return tuple(table.world.placed) if table.active else None
+            return tuple(table.world.placed) if table.active and table.has_world else None
 
     def trace(self, key: str) -> tuple[Labels, ...] | None:
         """The labels after the last reset and after each placement since, as MuJoCo judged them (None as placed)."""
@@ -177,7 +221,7 @@ class MujocoRobot:
         if table is None:
             return None
         with table.lock:
-            return tuple(table.world.trace) if table.active else None
+            return tuple(table.world.trace) if table.active and table.has_world else None
 
     def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
         """Simulate the whole execution on a fresh copy of the table and save it (.npz, .json and a .viser file).
@@ -217,9 +261,10 @@ class MujocoRobot:
         if table is None:
             return
         with table.lock:
-            self._clear(table)
-            table.active = False
+            table.pending.clear()
+            table.drop_world()
             table.on_click = None
+        self._show_start(table)
         self._refresh(table)
         self._changed(table)
 
@@ -227,7 +272,7 @@ class MujocoRobot:
         """Save the motion since the last reset under data_dir (see tableteach.sim.recordings)."""
         rid = RecordingId.parse(name)
         table = self._get(key)
-        if table is None:
+        if table is None or not table.has_world:
             log.warning("no table %s to save %s from", key, name)
             return
         with table.lock:
@@ -245,7 +290,7 @@ class MujocoRobot:
         if table is not None:
             with table.lock:
                 table.pending.clear()
-                table.world.close()
+                table.drop_world()
 
     def set_speed(self, key: str, speed: float) -> None:
         """Show this table's motions `speed` times faster (the study's setting; recordings keep real time)."""
@@ -293,7 +338,7 @@ class MujocoRobot:
         """The table's world, for tests and tools that look (never move anything through it)."""
         with self._lock:
             table = self._tables.get(key)
-        return None if table is None else table.world
+        return None if table is None else table._world
 
     def clicked(self, key: str, obj: str) -> None:
         """A click on a waiting object (a viser thread): mark the table busy and hand it on to be queued."""
@@ -302,7 +347,8 @@ class MujocoRobot:
             return
         with table.lock:
             callback = table.on_click
-            if callback is None or table.clicking or table.moving or obj in table.world.placed:
+            placed = table.world.placed if table.has_world and table.active else ()
+            if callback is None or table.clicking or table.moving or obj in placed:
                 return
             table.clicking = True
         self._refresh(table)
@@ -341,7 +387,27 @@ class MujocoRobot:
         """What a browser joining this table is shown first: the table as it is now (motions under way skipped)."""
         table = self._table(key)
         with table.lock:
-            return table.world.bodies, table.world.body_poses(), table.caption, self._clickable(table)
+            if table.has_world:
+                return table.world.bodies, table.world.body_poses(), table.caption, self._clickable(table)
+            bodies, poses = self._start_poses(table.seed)
+            return bodies, poses, table.caption, self._clickable(table)
+
+    def _show_start(self, table: _Table) -> None:
+        """Show the browsers of a table without a world its cleared state."""
+        hub = self._hub
+        if hub is not None and hub.watchers(table.key):
+            bodies, poses = self._start_poses(table.seed)
+            hub.show(table.key, bodies, poses)
+            hub.set_caption(table.key, "")
+
+    def _start_poses(self, seed: int) -> tuple[Sequence[str], np.ndarray]:
+        """A cleared table's poses for this seed, from the robot's one scratch world (no world per view)."""
+        with self._lock:
+            if self._scratch is None:
+                self._scratch = MujocoWorld(seed)
+            else:
+                self._scratch.reset(seed)
+            return self._scratch.bodies, self._scratch.body_poses()
 
     def _get(self, key: str) -> _Table | None:
         with self._lock:
@@ -364,15 +430,16 @@ class MujocoRobot:
     def _show_still(self, table: _Table) -> None:
         """Show the simulated state as it is now (caller holds table.lock)."""
         hub = self._hub
-        if hub is not None:
+        if hub is not None and table.has_world:
             hub.show(table.key, table.world.bodies, table.world.body_poses())
             hub.set_caption(table.key, table.caption)
 
     def _clickable(self, table: _Table) -> frozenset[str]:
         """The objects a participant may click now (caller holds table.lock)."""
-        if table.on_click is None or table.pending or table.clicking or not table.active and table.world.placed:
+        if table.on_click is None or table.pending or table.clicking:
             return frozenset()
-        return frozenset(o for o in table.world.objects if o not in table.world.placed)
+        placed = set(table.world.placed) if table.has_world and table.active else set()
+        return frozenset(o for o in OBJECTS if o not in placed)
 
     def _refresh(self, table: _Table) -> None:
         """Make exactly the objects a participant may click now clickable."""
@@ -394,12 +461,17 @@ class MujocoRobot:
             log.exception("change notice for table %s failed", table.key)
 
     def _animate_loop(self) -> None:
-        """The animator: every FRAME_SECONDS, show each moving table's current frame to its browsers."""
+        """The animator: every FRAME_SECONDS, show each moving table's current frame to its browsers; now and
+        then, free the simulations of tables left idle."""
+        reaped = time.monotonic()
         while not self._closing.is_set():
+            if time.monotonic() - reaped > REAP_EVERY_SECONDS:
+                self._reap_idle()
+                reaped = time.monotonic()
             with self._lock:
                 moving = [t for t in self._tables.values() if t.pending]
             if not moving:
-                self._animate.wait(1.0)
+                self._animate.wait(REAP_EVERY_SECONDS)
                 self._animate.clear()
                 continue
             now = time.monotonic()
@@ -411,6 +483,18 @@ class MujocoRobot:
                     with table.lock:
                         table.pending.clear()
             self._closing.wait(FRAME_SECONDS)
+
+    def _reap_idle(self) -> None:
+        """Free the worlds of tables unused for idle_seconds (the stored placements rebuild them when needed)."""
+        now = time.monotonic()
+        with self._lock:
+            tables = list(self._tables.values())
+        for table in tables:
+            with table.lock:
+                if (table.has_world and not table.pending and not table.clicking
+                        and now - table.last_used > self.idle_seconds):
+                    log.debug("freeing the idle simulation of table %s", table.key)
+                    table.drop_world()
 
     def _advance(self, table: _Table, now: float) -> None:
         """Show the frame due now of the table's current motion; at its end, the next motion (or stillness)."""

@@ -4,6 +4,7 @@ changed body poses pushed per frame (BodyMirror); SceneView is a whole scene on 
 from __future__ import annotations
 
 import threading
+from typing import Any
 from collections.abc import Callable, Iterable, Sequence
 
 import mujoco
@@ -55,7 +56,7 @@ class BodyMirror:
                  bodies: Iterable[str] | None = None) -> None:
         self.scene = scene
         self.frames: dict[str, viser.FrameHandle] = {}
-        self.geoms: dict[str, list[viser.SceneNodeHandle]] = {}
+        self.geoms: dict[str, list[Any]] = {}  # viser's clickable handles (no public base type)
         self._last: dict[str, np.ndarray] = {}
         wanted = None if bodies is None else set(bodies)
         for b in range(model.nbody):
@@ -96,7 +97,7 @@ class BodyMirror:
         return sent
 
 
-def add_geom(scene: viser.SceneApi, model: mujoco.MjModel, g: int, path: str) -> viser.SceneNodeHandle | None:
+def add_geom(scene: viser.SceneApi, model: mujoco.MjModel, g: int, path: str) -> Any:
     """One MuJoCo geom as a viser primitive at its local pose (None for collision-only or invisible geoms)."""
     color, alpha = _rgb(model, g)
     if model.geom_group[g] >= HIDDEN_GROUP or alpha == 0.0:

@@ -198,19 +198,20 @@ def test_a_reload_in_the_middle_of_a_query_resumes_the_same_query(browser_page, 
     for demo in (["dinner_plate", "small_plate", "bowl"], ["knife"]):  # through the API: the same service calls
         for obj in demo:
             assert httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj},
-                              headers=headers).status_code == 200
-        assert httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers).status_code == 200
+                              headers=headers, timeout=60).status_code == 200
+        finished = httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers, timeout=60)
+        assert finished.status_code == 200
 
     page.wait_for_selector("text=Question 1 of 1")
     page.get_by_role("button", name="Watch the robot").click()
     page.wait_for_selector("#status.busy")
-    before = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()["execution"]
+    before = httpx.get(f"{server.url}/api/v1/me", headers=headers, timeout=60).json()["execution"]
     assert before["status"] == "running"
 
     page.reload()
     page.wait_for_selector("text=Question 1 of 1")
     page.wait_for_selector("#acceptable", timeout=90_000)
-    after = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()
+    after = httpx.get(f"{server.url}/api/v1/me", headers=headers, timeout=60).json()
     assert after["step"] == {"kind": "query", "index": 0, "total": 1}
     assert after["execution"]["events"] == before["events"] and after["execution"]["status"] == "finished"
     placed_text = page.locator(".placed").first.inner_text()
@@ -268,7 +269,7 @@ def test_the_served_page_shows_the_scene_through_the_proxy(browser_page, tmp_pat
         page.frame_locator("#viewer-frame").locator("canvas").first.wait_for()
         headers = {"Authorization": f"Bearer {token}"}
         deadline = time.monotonic() + 60
-        while (robot := httpx.get(f"{server.url}/api/v1/me/robot", headers=headers).json())["watchers"] < 1:
+        while (robot := httpx.get(f"{server.url}/api/v1/me/robot", headers=headers, timeout=60).json())["watchers"] < 1:
             assert time.monotonic() < deadline, f"no 3D view connected through the proxy within 60 s: {robot}"
             time.sleep(0.5)
         assert page.locator("#viewer-note").is_hidden()
@@ -318,7 +319,7 @@ def _click_until_busy(page, server, key: str, token: str, obj: str) -> float:
         clicks.append(_click_object(page, server, key, obj))
         deadline = time.monotonic() + 15
         while time.monotonic() < deadline:
-            state = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()
+            state = httpx.get(f"{server.url}/api/v1/me", headers=headers, timeout=60).json()
             if obj in (state["demonstration"] or {}).get("placed", []):
                 page.wait_for_function("() => window.busyAt !== null", timeout=10_000)
                 busy = page.evaluate("() => window.busyAt") / 1000
@@ -438,7 +439,7 @@ def test_without_a_3d_view_the_phone_panel_has_the_screen_and_the_confirmation_f
         token = _begin(page, server, _study(server), "no-view")
         headers = {"Authorization": f"Bearer {token}"}
         assert httpx.post(f"{server.url}/api/v1/me/placements", json={"object": "dinner_plate"},
-                          headers=headers).status_code == 200
+                          headers=headers, timeout=60).status_code == 200
         page.wait_for_function("() => document.querySelector('.placed')?.textContent.includes('dinner plate')")
         assert "3D view" not in page.locator("#status").inner_text()
         page.get_by_role("button", name="Finish demonstration").click()
