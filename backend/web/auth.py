@@ -75,14 +75,20 @@ class SecretChecker:
         """Whether a check may cost real CPU (a legacy PBKDF2 hash: run it off the event loop)."""
         return self._pbkdf2 is not None
 
-    def check(self, secret: str) -> bool:
-        """Whether the secret is the key (constant-time comparison of digests)."""
+    def quick_check(self, secret: str) -> bool | None:
+        """Whether the secret is the key when that costs one SHA-256 (None: only the slow legacy check can tell)."""
         quick = hashlib.sha256(secret.encode()).digest()
         if self._pbkdf2 is None:
             return hmac.compare_digest(quick, self._digest)
         with self._lock:
-            if quick in self._verified:
-                return True
+            return True if quick in self._verified else None
+
+    def check(self, secret: str) -> bool:
+        """Whether the secret is the key (constant-time comparison of digests)."""
+        known = self.quick_check(secret)
+        if known is not None:
+            return known
+        quick = hashlib.sha256(secret.encode()).digest()
         iterations, salt, digest = self._pbkdf2
         ok = hmac.compare_digest(hashlib.pbkdf2_hmac("sha256", secret.encode(), salt, iterations), digest)
         if ok:
