@@ -13,9 +13,9 @@ from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
 from . import analysis, dashboard, motion, viewer
-from .auth import FailureLimiter, experimenter_checker
+from .auth import experimenter_checker
 from .deps import require_experimenter
-from .limits import BodyLimit
+from .limits import AddressLimiter, BodyLimit
 from .robots import make_robot
 from .schemas import error_responses
 
@@ -59,7 +59,8 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.settings = settings
     app.state.experimenter = checker
     app.state.dev_token = dev_token
-    app.state.key_failures = FailureLimiter()
+    app.state.key_failures = AddressLimiter()
+    app.state.joins = AddressLimiter(settings.joins_per_address, settings.joins_window_seconds)
     errors.install(app)
     app.add_middleware(BodyLimit)
     for module in (participants, studies, exports, analysis, dashboard, motion, viewer, pages):

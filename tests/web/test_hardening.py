@@ -68,13 +68,13 @@ def test_wrong_keys_from_one_address_are_limited_with_retry_after(app_client) ->
 
 
 def test_the_limiter_counts_each_address_and_forgets_old_failures(monkeypatch) -> None:
-    from tableteach.web import auth
+    from tableteach.web import limits
 
     clock = [1000.0]
-    monkeypatch.setattr(auth.time, "monotonic", lambda: clock[0])
-    limiter = auth.FailureLimiter(limit=3, window=60.0)
+    monkeypatch.setattr(limits.time, "monotonic", lambda: clock[0])
+    limiter = limits.AddressLimiter(limit=3, window=60.0)
     for _ in range(3):
-        limiter.failed("10.0.0.1")
+        limiter.record("10.0.0.1")
     assert limiter.retry_after("10.0.0.1") == 60 and limiter.retry_after("10.0.0.2") == 0
     clock[0] += 61
     assert limiter.retry_after("10.0.0.1") == 0
