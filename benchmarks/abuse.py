@@ -62,9 +62,11 @@ class Server:
         full_env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": TOKEN, "TABLETEACH_DATA_DIR": str(folder / "data"),
                     **env}
         full_env.pop("TABLETEACH_DEV_MODE", None)
-        self.proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "serve", "--port", str(self.port),
-                                      "--database-url", f"sqlite:///{self.db}"], env=full_env,
-                                     stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        self.log = folder / "server.log"
+        with open(self.log, "wb") as log:
+            self.proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "serve", "--port", str(self.port),
+                                          "--database-url", f"sqlite:///{self.db}"], env=full_env,
+                                         stdout=log, stderr=subprocess.STDOUT)
         deadline = time.monotonic() + 60
         while True:
             if self.proc.poll() is not None:
@@ -79,6 +81,11 @@ class Server:
             time.sleep(0.1)
 
     def stop(self) -> None:
+        if self.proc.poll() is not None:
+            say(f"the server had exited with {self.proc.returncode}: {self.log.read_text()[-2000:]}")
+        warnings = [line for line in self.log.read_text().splitlines() if "ERROR" in line or "Traceback" in line]
+        if warnings:
+            say(f"the server logged {len(warnings)} error line(s), the first: {warnings[0][:200]}")
         self.proc.terminate()
         try:
             self.proc.wait(timeout=15)
@@ -266,6 +273,13 @@ def attack_join_flood(folder: Path, n: int) -> bool:
     return ok
 
 
+async def _settled(readers: list[StreamReader], limit: float = 60.0) -> None:
+    """Wait until every stream has its answer (status), at most `limit` seconds."""
+    deadline = time.monotonic() + limit
+    while any(r.status == 0 for r in readers) and time.monotonic() < deadline:
+        await asyncio.sleep(0.1)
+
+
 class StreamReader:
     """One raw event stream: its status, and how many change and superseded events it read."""
 
@@ -364,7 +378,8 @@ def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: 
                 for k in range(0, one_token, 100):
                     solo_tasks += [asyncio.ensure_future(r.run(server.port, tokens[-1], stop)) for r in solo[k:k + 100]]
                     await asyncio.sleep(0.2)
-                await asyncio.sleep(2.0)
+                await _settled(solo)
+                await asyncio.sleep(1.0)
                 still = sum(not r.closed for r in solo)
                 say(f"one token: {sum(r.status == 200 for r in solo)} of {one_token} streams answered 200, "
                     f"{sum(r.superseded for r in solo)} superseded, {still} still open")
@@ -376,7 +391,7 @@ def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: 
                     tasks += [asyncio.ensure_future(r.run(server.port, tokens[j // 2], stop))
                               for j, r in enumerate(readers[k:k + 100], start=k)]
                     await asyncio.sleep(0.2)
-                await asyncio.sleep(2.0)
+                await _settled(readers)
                 say(f"{sum(r.status == 200 for r in readers)} of {len(readers)} streams answered 200, "
                     f"{sum(not r.closed for r in readers)} open")
                 counts: Counter[str] = Counter()
@@ -391,7 +406,7 @@ def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: 
                 extra = [StreamReader() for _ in late]
                 extra_tasks = [asyncio.ensure_future(r.run(server.port, token, stop))
                                for r, token in zip(extra, late, strict=True)]
-                await asyncio.sleep(3.0)
+                await _settled(extra)
                 statuses = Counter(r.status for r in extra)
                 say(f"one stream each for {len(late)} more participants: {dict(statuses)} (200 up to the cap of "
                     f"{cap}, 503 beyond)")

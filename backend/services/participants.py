@@ -13,7 +13,7 @@ from typing import Any
 from ..config import Settings
 from ..db import repository as repo
 from ..db.tables import StudyRow, utcnow
-from ..errors import Conflict, InvalidInput, NotFound, ResumeRefused, StudyFull
+from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, StudyFull
 from .context import Context, app_version, commit
 from .state import Action, act, end_participation, require_stage, state_view, task_sequence
 from .studies import ITEM_KINDS
@@ -124,6 +124,17 @@ def join_study(
         })
         commit(s)
         return state_view(s, participant, study), True
+
+
+def participant_id_of(ctx: Context, token: str) -> int:
+    """The number of the participant whose token this is (one query; NotAuthenticated for an unknown token).
+
+    For the long-lived connections, which need to know whose they are but not the whole state."""
+    with ctx.db.read() as s:
+        found = repo.get_participant_and_study(s, token=token)
+        if found is None:
+            raise NotAuthenticated("unknown participant token")
+        return int(found[0].id)
 
 
 def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str,

@@ -193,10 +193,9 @@ async def change_events(token: str, ctx: ContextDep, request: Request) -> Respon
     header, so the token comes from the page's own path (the page's address carries it already).
     """
     try:
-        state = await run_in_threadpool(services.participant_state, ctx, token)
+        pid = await run_in_threadpool(services.participant_id_of, ctx, token)  # one query: the feed reads the rest
     except NotAuthenticated:
         return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
-    pid = int(state["participant_id"])
 
     def read() -> tuple[dict | None, float | None]:
         robot = due = None
