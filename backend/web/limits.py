@@ -15,7 +15,7 @@ import resource
 import threading
 import time
 from collections import OrderedDict, deque
-from typing import Any
+from typing import Any, cast
 
 from starlette.types import ASGIApp, Message, Receive, Scope, Send
 from uvicorn.protocols.http.httptools_impl import HttpToolsProtocol
@@ -139,7 +139,8 @@ class LimitedHttpToolsProtocol(HttpToolsProtocol):
     @classmethod
     def with_timeouts(cls, header_seconds: float, body_seconds: float) -> type[LimitedHttpToolsProtocol]:
         """This protocol with other deadlines (the server's settings)."""
-        return type(cls.__name__, (cls,), {"header_timeout": header_seconds, "body_timeout": body_seconds})
+        configured = type(cls.__name__, (cls,), {"header_timeout": header_seconds, "body_timeout": body_seconds})
+        return cast("type[LimitedHttpToolsProtocol]", configured)
 
     def _arm(self, seconds: float, handler: Any) -> None:
         self._disarm()
