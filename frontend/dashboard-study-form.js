@@ -231,7 +231,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
         field("Completion code (from Prolific)", h("input", { name: "completion_code", id: "completion_code", value: study?.completion_code ?? "" }), "completion_code"),
         field("Screened-out code", h("input", { name: "screened_out_code", id: "screened_out_code", value: study?.screened_out_code ?? "" }), "screened_out_code"),
         field("Time-out after (minutes idle, empty: never)", h("input", { type: "number", name: "timeout_minutes", id: "timeout_minutes", min: 1, max: 1440, value: study?.timeout_minutes ?? "" }), "timeout_minutes"),
-        field("Places (participants it takes, as on Prolific; empty: no limit)", h("input", { type: "number", name: "places", id: "places", min: 1, max: 100000, value: study?.places ?? "" }), "places")),
+        field("Places (participants; empty: no limit)", h("input", { type: "number", name: "places", id: "places", min: 1, max: 100000, value: study?.places ?? "" }), "places")),
       h("label", { class: "inline" }, checkbox("pilot", d.pilot), "Pilot: participants who join now are flagged as pilots")),
     h("div", { class: "row" }, h("button", { type: "submit", class: "primary", id: "create" }, editing ? "Save changes" : "Create study"),
       h("a", { href: editing ? `#/study/${encodeURIComponent(study.id)}` : "#/", class: "button ghost" }, "Cancel")),
