@@ -8,9 +8,10 @@ every 50 ms and the script reports its latency (median, p99) and failures.
   stall; how many the server closed and within how long (the deadline is TABLETEACH_HEADER_TIMEOUT_SECONDS).
 - join flood: --joins joins from one address at once (the per-address limit), then a study with 20 places
   flooded on a server without that limit; joins accepted, refused (429, 409) and the database's growth.
-- event streams: --tokens-streams streams for one participant token (at most two stay open), then
-  --streams streams (two per participant) open while 50 participants place objects; streams accepted and
-  still open, events received, and the 503 beyond the process cap.
+- event streams: 1000 streams for one participant token (at most two stay open); 50 participants place
+  objects for --seconds without streams (the machine's baseline), then 500 streams (two per participant) are
+  opened and 50 others place objects as long; streams accepted and still open, events received, and the 503
+  beyond the process cap.
 - wrong keys: --wrong wrong experimenter keys from one address with the right key every 10th request.
 - deep formula: custom tasks whose ground truth nests 1,990 negations or 996 parentheses.
 
@@ -384,6 +385,12 @@ def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: 
                 say(f"one token: {sum(r.status == 200 for r in solo)} of {one_token} streams answered 200, "
                     f"{sum(r.superseded for r in solo)} superseded, {still} still open")
                 ok = ok and still <= 2
+                # The same placements without the streams first: what this machine gives now, for comparison.
+                baseline: Counter[str] = Counter()
+                with HealthProbe(server.port) as probe:
+                    until = time.monotonic() + seconds
+                    await asyncio.gather(*(_place_for(client, t, until, baseline) for t in tokens[-50:]))
+                say(f"without the streams, placements and finishes: {dict(baseline)}; {probe.summary()}")
                 # Many participants, two streams each, while placements go on.
                 readers = [StreamReader() for _ in range(2 * n_people)]
                 tasks = []
@@ -398,9 +405,9 @@ def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: 
                 with HealthProbe(server.port) as probe:
                     until = time.monotonic() + seconds
                     await asyncio.gather(*(_place_for(client, t, until, counts) for t in tokens[:50]))
-                say(f"placements and finishes: {dict(counts)}; change events read: {sum(r.changes for r in readers)}"
-                    f" (streams of the 50 who acted: {sum(r.changes for r in readers[:100])})")
-                say(probe.summary())
+                say(f"with the streams, placements and finishes: {dict(counts)}; {probe.summary()}")
+                say(f"change events read: {sum(r.changes for r in readers)} (streams of the 50 who acted: "
+                    f"{sum(r.changes for r in readers[:100])})")
                 ok = ok and probe.p99() < TARGET_STREAMS_P99_MS and probe.failures == 0
                 # Beyond the process cap: 503 with Retry-After.
                 extra = [StreamReader() for _ in late]
