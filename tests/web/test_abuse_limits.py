@@ -435,3 +435,54 @@ def test_slots_keep_the_newest_per_participant_and_refuse_beyond_the_total() -> 
     from tests.async_run import run_scenario
 
     assert run_scenario(scenario) == ["first", False, (2, 1, 3), 0]
+
+
+@pytest.fixture
+def echo_viewer(monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
+    """A websocket echo server in a thread standing for a participant's viser server; open_viewer names it."""
+    import asyncio
+
+    import websockets
+
+    from tableteach.web import viewer
+
+    ready: dict[str, Any] = {}
+
+    async def serve() -> None:
+        async def echo(ws: Any) -> None:
+            async for message in ws:
+                await ws.send(message)
+
+        async with websockets.serve(echo, "127.0.0.1", 0) as server:
+            ready["port"] = server.sockets[0].getsockname()[1]
+            ready["stop"] = asyncio.get_running_loop().create_future()
+            ready["loop"] = asyncio.get_running_loop()
+            await ready["stop"]
+
+    thread = threading.Thread(target=lambda: asyncio.run(serve()), daemon=True)
+    thread.start()
+    _wait_for(lambda: "stop" in ready, "the echo server")
+    monkeypatch.setattr(viewer.services, "open_viewer", lambda _ctx, _token: ready["port"])
+    yield ready["port"]
+    ready["loop"].call_soon_threadsafe(ready["stop"].set_result, None)
+    thread.join(timeout=10)
+
+
+def test_a_third_view_of_a_participant_closes_their_first(app_client: Any, echo_viewer: int) -> None:
+    study = make_study(app_client)
+    token, _ = join(app_client, study)
+    slots = app_client.app.state.viewer_slots
+    with app_client.websocket_connect(f"/p/{token}/viewer") as first, \
+            app_client.websocket_connect(f"/p/{token}/viewer") as second:
+        first.send_text("one")
+        assert first.receive_text() == "one"  # proxied to the (echo) view and back
+        second.send_text("two")
+        assert second.receive_text() == "two"
+        with app_client.websocket_connect(f"/p/{token}/viewer") as third:
+            third.send_text("three")
+            assert third.receive_text() == "three"
+            assert first.receive()["type"] == "websocket.close"  # the oldest made room for the newest
+            assert slots.held(token) == 2
+            second.send_text("still")
+            assert second.receive_text() == "still"
+    _wait_for(lambda: slots.count == 0, "every view's slot to be given back")
