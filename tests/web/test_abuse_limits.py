@@ -270,7 +270,7 @@ def test_a_deep_formula_on_the_command_line_is_one_line_and_exit_2() -> None:
 class ThreadServer:
     """The app served by uvicorn in a thread of the test process (so the test can look at its feeds)."""
 
-    def __init__(self, root: Path, **settings: Any) -> None:
+    def __init__(self, root: Path, deadline_seconds: float = 10.0, **settings: Any) -> None:
         import uvicorn
 
         from tableteach.db.migrate import upgrade_head
@@ -282,7 +282,9 @@ class ThreadServer:
         upgrade_head(self.settings.database_url)
         self.app = create_app(self.settings)
         self.server = uvicorn.Server(uvicorn.Config(self.app, host="127.0.0.1", port=self.settings.port,
-                                                    log_level="warning", http=LimitedHttpToolsProtocol,
+                                                    log_level="warning",
+                                                    http=LimitedHttpToolsProtocol.with_timeouts(deadline_seconds,
+                                                                                               deadline_seconds),
                                                     timeout_graceful_shutdown=1))
         self.thread = threading.Thread(target=self.server.run, daemon=True)
         self.thread.start()
@@ -486,3 +488,36 @@ def test_a_third_view_of_a_participant_closes_their_first(app_client: Any, echo_
             second.send_text("still")
             assert second.receive_text() == "still"
     _wait_for(lambda: slots.count == 0, "every view's slot to be given back")
+
+
+def test_an_open_view_and_event_stream_outlive_the_header_deadline(tmp_path: Path, echo_viewer: int) -> None:
+    import asyncio
+
+    import websockets
+
+    server = ThreadServer(tmp_path, deadline_seconds=1.0)
+    try:
+        token, _pid = _participant(server.url)
+
+        async def talk() -> list[str]:
+            async with websockets.connect(f"ws://127.0.0.1:{server.settings.port}/p/{token}/viewer") as ws:
+                await ws.send("before")
+                first = await asyncio.wait_for(ws.recv(), WAIT)
+                await asyncio.sleep(3.0)  # three header deadlines: an upgraded connection has none
+                await ws.send("after")
+                return [first, await asyncio.wait_for(ws.recv(), WAIT)]
+
+        from tests.async_run import run_scenario
+
+        assert run_scenario(talk) == ["before", "after"]
+        events = EventStream(server.settings.port, token)  # and an event stream likewise
+        try:
+            assert events.status == 200 and events.next_event()[0] == "change"
+            time.sleep(3.0)
+            httpx.post(f"{server.url}/api/v1/me/placements", json={"object": "bowl"}, headers=bearer(token),
+                       timeout=WAIT).raise_for_status()
+            assert events.next_event()[0] == "change"
+        finally:
+            events.close()
+    finally:
+        server.stop()
