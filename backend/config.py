@@ -45,6 +45,21 @@ class Settings(BaseSettings):
                     "networks, or * where only the proxy can reach the app)")
     active_minutes: float = Field(60.0, gt=0,
         description="a participant counts as active this long after their last request")
+    # Limits of a public endpoint (docs/server.md, "Limits").
+    header_timeout_seconds: float = Field(10.0, gt=0.0, le=300.0,
+        description="a connection whose request headers are not complete this long after its first byte is closed")
+    body_timeout_seconds: float = Field(10.0, gt=0.0, le=300.0,
+        description="a request body that sends nothing for this long is dropped and its connection closed")
+    joins_per_address: int = Field(30, ge=1, le=100_000,
+        description="new participants one client address may start per joins_window_seconds (then 429)")
+    joins_window_seconds: float = Field(60.0, gt=0.0, le=86_400.0,
+        description="the sliding window of joins_per_address")
+    streams_per_participant: int = Field(2, ge=1, le=20,
+        description="open change-event streams (and 3D-view websockets) per participant; a newer one ends the oldest")
+    max_event_streams: int = Field(1000, ge=1, le=100_000,
+        description="open change-event streams in one process; beyond it 503 with Retry-After (the page polls)")
+    max_viewer_sockets: int = Field(200, ge=1, le=10_000,
+        description="open 3D-view websockets in one process; beyond it the socket closes with 1013 (try again)")
     host: str = "127.0.0.1"
     port: int = Field(8000, ge=0, le=65535)
 

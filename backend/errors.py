@@ -26,6 +26,10 @@ class ResumeRefused(Conflict):
     """An external id that has joined before, without its session id or browser (HTTP 409, nothing about them)."""
 
 
+class StudyFull(Conflict):
+    """Every place of the study is taken (finished plus under way, as Prolific counts them) (HTTP 409)."""
+
+
 class InvalidInput(TableTeachError):
     """The request is well-formed but its values are not acceptable (HTTP 422)."""
 

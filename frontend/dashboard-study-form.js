@@ -6,7 +6,8 @@ import * as api from "./dashboard-api.js";
 import { h } from "./dom.js";
 
 // What can change once participants can join (services/studies.py LIVE_FIELDS).
-export const LIVE_FIELDS = ["name", "pilot", "completion_code", "screened_out_code", "completion_url", "timeout_minutes"];
+export const LIVE_FIELDS = ["name", "pilot", "completion_code", "screened_out_code", "completion_url", "timeout_minutes",
+  "places"];
 const TASK_HINT = "e.g. F(bowl) & (!fork U knife)";
 
 function removeButton() {
@@ -148,6 +149,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
       consent_text: optional(f.get("consent_text")), consent_version: optional(f.get("consent_version")),
       completion_url: optional(f.get("completion_url")), completion_code: optional(f.get("completion_code")),
       screened_out_code: optional(f.get("screened_out_code")), timeout_minutes: int("timeout_minutes"),
+      places: int("places"),
       robot_speed: optional(f.get("robot_speed")) === null ? undefined : Number(f.get("robot_speed")),
       pilot: Boolean(f.get("pilot")),
     };
@@ -228,7 +230,8 @@ export function studyFormView({ choices, study = null, onSaved }) {
       h("div", { class: "row" },
         field("Completion code (from Prolific)", h("input", { name: "completion_code", id: "completion_code", value: study?.completion_code ?? "" }), "completion_code"),
         field("Screened-out code", h("input", { name: "screened_out_code", id: "screened_out_code", value: study?.screened_out_code ?? "" }), "screened_out_code"),
-        field("Time-out after (minutes idle, empty: never)", h("input", { type: "number", name: "timeout_minutes", id: "timeout_minutes", min: 1, max: 1440, value: study?.timeout_minutes ?? "" }), "timeout_minutes")),
+        field("Time-out after (minutes idle, empty: never)", h("input", { type: "number", name: "timeout_minutes", id: "timeout_minutes", min: 1, max: 1440, value: study?.timeout_minutes ?? "" }), "timeout_minutes"),
+        field("Places (participants; empty: no limit)", h("input", { type: "number", name: "places", id: "places", min: 1, max: 100000, value: study?.places ?? "" }), "places")),
       h("label", { class: "inline" }, checkbox("pilot", d.pilot), "Pilot: participants who join now are flagged as pilots")),
     h("div", { class: "row" }, h("button", { type: "submit", class: "primary", id: "create" }, editing ? "Save changes" : "Create study"),
       h("a", { href: editing ? `#/study/${encodeURIComponent(study.id)}` : "#/", class: "button ghost" }, "Cancel")),

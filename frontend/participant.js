@@ -323,6 +323,8 @@ function listen() {
   events = new EventSource(`${window.location.pathname.replace(/\/$/, "")}/events`);
   events.addEventListener("open", () => { eventsOpen = true; });
   events.addEventListener("error", () => { eventsOpen = false; }); // EventSource reconnects by itself
+  // A newer stream of this participant (another tab or a reload) took this one's place: poll from now on.
+  events.addEventListener("superseded", () => { events.close(); eventsOpen = false; });
   events.addEventListener("change", (event) => {
     if (blocked) return;
     // The event carries the robot's activity: show "busy" at once, then read the state.

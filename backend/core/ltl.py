@@ -171,87 +171,133 @@ def _tokenize(text: str) -> list[tuple[str, int]]:
     return tokens
 
 
+MAX_DEPTH = 100  # nested operators and parentheses; template formulas nest 3-4 deep, a study's rarely beyond 10
+
+_UNARY = {"!": Not, "X": Next, "WX": WeakNext, "F": Eventually, "G": Always}
+# Binary operators: binding strength and whether a chain of them nests to the right (else it is one n-ary node).
+_BINARY = {"->": (1, True), "|": (2, False), "&": (3, False), "U": (4, True), "R": (4, True)}
+
+
+class FormulaTooDeepError(ParseError):
+    """A formula nests more than MAX_DEPTH operators or parentheses (refused by policy, not by Python's stack)."""
+
+    def __init__(self, text: str, position: int) -> None:
+        super().__init__(text, position, f"at most {MAX_DEPTH} nested operators and parentheses",
+                         "a formula nested deeper")
+        self.args = (f"at position {position}: formula nested too deeply; expected at most {MAX_DEPTH} nested "
+                     "operators and parentheses",)
+
+
+@dataclass
+class _Pending:
+    """An operator on the parser's stack, waiting for its operands ("(" marks an open parenthesis)."""
+
+    op: str
+    position: int
+    arity: int
+
+
+def _node(op: str, args: list[tuple[Formula, int]]) -> tuple[Formula, int]:
+    """The formula of an operator over its operands, with its depth (operands carry theirs)."""
+    depth = 1 + max(d for _, d in args)
+    items = tuple(f for f, _ in args)
+    if op in _UNARY:
+        return _UNARY[op](items[0]), depth
+    if op == "&":
+        return And(items), depth
+    if op == "|":
+        return Or(items), depth
+    left, right = items
+    return {"->": Implies, "U": Until, "R": Release}[op](left, right), depth
+
+
 class _Parser:
+    """Operator precedence parsing with explicit stacks: nesting is bounded by MAX_DEPTH, never by recursion."""
+
     def __init__(self, text: str) -> None:
         self.text = text
         self.tokens = _tokenize(text)
-        self.i = 0
+        self.operands: list[tuple[Formula, int]] = []
+        self.operators: list[_Pending] = []
 
-    def peek(self) -> str | None:
-        return self.tokens[self.i][0] if self.i < len(self.tokens) else None
+    def fail(self, i: int, expected: str) -> ParseError:
+        where = self.tokens[i][1] if i < len(self.tokens) else len(self.text)
+        found = "end of text" if i >= len(self.tokens) else repr(self.tokens[i][0])
+        return ParseError(self.text, where, expected, found)
 
-    def where(self) -> int:
-        return self.tokens[self.i][1] if self.i < len(self.tokens) else len(self.text)
+    def reduce(self) -> None:
+        """Replace the top operator and its operands by the formula they make."""
+        top = self.operators.pop()
+        args = self.operands[-top.arity:]
+        del self.operands[-top.arity:]
+        node = _node(top.op, args)
+        if node[1] > MAX_DEPTH:
+            raise FormulaTooDeepError(self.text, top.position)
+        self.operands.append(node)
 
-    def found(self) -> str:
-        token = self.peek()
-        return "end of text" if token is None else repr(token)
-
-    def expect(self, token: str) -> None:
-        if self.peek() != token:
-            raise ParseError(self.text, self.where(), repr(token), self.found())
-        self.i += 1
+    def open_depth(self) -> int:
+        return sum(1 for entry in self.operators if entry.op == "(")
 
     def parse(self) -> Formula:
         if not self.tokens:
             raise ParseError(self.text, 0, "a formula", "end of text")
-        formula = self.implication()
-        if self.peek() is not None:
-            raise ParseError(self.text, self.where(), "an operator (&, |, ->, U, R) or end of text", self.found())
-        return formula
-
-    def implication(self) -> Formula:
-        left = self.disjunction()
-        if self.peek() == "->":
-            self.i += 1
-            return Implies(left, self.implication())
-        return left
-
-    def disjunction(self) -> Formula:
-        items = [self.conjunction()]
-        while self.peek() == "|":
-            self.i += 1
-            items.append(self.conjunction())
-        return disj(items)
-
-    def conjunction(self) -> Formula:
-        items = [self.binary_temporal()]
-        while self.peek() == "&":
-            self.i += 1
-            items.append(self.binary_temporal())
-        return conj(items)
-
-    def binary_temporal(self) -> Formula:
-        left = self.unary()
-        if self.peek() == "U":
-            self.i += 1
-            return Until(left, self.binary_temporal())
-        if self.peek() == "R":
-            self.i += 1
-            return Release(left, self.binary_temporal())
-        return left
-
-    def unary(self) -> Formula:
-        token = self.peek()
-        unary_ops = {"!": Not, "X": Next, "WX": WeakNext, "F": Eventually, "G": Always}
-        if token in unary_ops:
-            self.i += 1
-            return unary_ops[token](self.unary())
-        if token == "(":
-            self.i += 1
-            inner = self.implication()
-            self.expect(")")
-            return inner
-        if token in ("true", "false"):
-            self.i += 1
-            return Const(token == "true")
-        if token == "END":
-            self.i += 1
-            return End()
-        if token is not None and token not in KEYWORDS and re.fullmatch(r"[A-Za-z_]\w*", token):
-            self.i += 1
-            return Prop(token)
-        raise ParseError(self.text, self.where(), "a proposition, '!', 'X', 'F', 'G' or '('", self.found())
+        i, n = 0, len(self.tokens)
+        while True:
+            # An operand: prefix operators and open parentheses first, then an atom.
+            while i < n and (self.tokens[i][0] in _UNARY or self.tokens[i][0] == "("):
+                token, position = self.tokens[i]
+                self.operators.append(_Pending(token, position, 1))
+                if len(self.operators) > MAX_DEPTH:
+                    raise FormulaTooDeepError(self.text, position)
+                i += 1
+            token = self.tokens[i][0] if i < n else None
+            if token in ("true", "false"):
+                self.operands.append((Const(token == "true"), 0))
+            elif token == "END":
+                self.operands.append((End(), 0))
+            elif token is not None and token not in KEYWORDS and re.fullmatch(r"[A-Za-z_]\w*", token):
+                self.operands.append((Prop(token), 0))
+            else:
+                raise self.fail(i, "a proposition, '!', 'X', 'F', 'G' or '('")
+            i += 1
+            # After an operand: close parentheses, then a binary operator or the end.
+            while True:
+                while self.operators and self.operators[-1].op in _UNARY:
+                    self.reduce()
+                token = self.tokens[i][0] if i < n else None
+                if token != ")":
+                    break
+                if not self.open_depth():
+                    raise self.fail(i, "an operator (&, |, ->, U, R) or end of text")
+                while self.operators[-1].op != "(":
+                    self.reduce()
+                self.operators.pop()
+                i += 1
+            if token is None:
+                if self.open_depth():
+                    raise self.fail(i, "')'")
+                while self.operators:
+                    self.reduce()
+                (formula, _), = self.operands
+                return formula
+            if token not in _BINARY:
+                raise self.fail(i, "')'" if self.open_depth() else "an operator (&, |, ->, U, R) or end of text")
+            strength, nests_right = _BINARY[token]
+            while self.operators and self.operators[-1].op in _BINARY:
+                top_strength = _BINARY[self.operators[-1].op][0]
+                if top_strength > strength or (top_strength == strength and not nests_right
+                                               and self.operators[-1].op != token):
+                    self.reduce()
+                else:
+                    break
+            top = self.operators[-1] if self.operators else None
+            if top is not None and top.op == token and not nests_right:
+                top.arity += 1  # a & b & c is one conjunction of three
+            else:
+                self.operators.append(_Pending(token, self.tokens[i][1], 2))
+                if len(self.operators) > MAX_DEPTH:
+                    raise FormulaTooDeepError(self.text, self.tokens[i][1])
+            i += 1
 
 
 def parse(text: str, propositions: Iterable[str] | None = None) -> Formula:

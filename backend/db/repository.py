@@ -183,16 +183,27 @@ def list_participants(session: Session, *, study_id: str, include_pilot: bool = 
     return list(session.scalars(stmt))
 
 
-def live_assignments(session: Session, *, study_id: str, active_since: datetime,
-                     pilot: bool) -> list[tuple[str, list[int] | None]]:
-    """Condition and task order of the participants who count for balancing: finished, or under way and active
-    since active_since (pilots only with pilots)."""
-    stmt = select(ParticipantRow.condition, ParticipantRow.task_order).where(
-        ParticipantRow.study_id == study_id, ParticipantRow.pilot.is_(pilot),
+def _taking_part(study_id: str, active_since: datetime, pilot: bool) -> Any:
+    """Participants who hold a place: finished, or under way and active since active_since (pilots with pilots)."""
+    return ((ParticipantRow.study_id == study_id) & ParticipantRow.pilot.is_(pilot) & (
         (ParticipantRow.stage == "done") | (
-            ParticipantRow.stage.not_in(ENDED_STAGES) & (ParticipantRow.last_activity_at >= active_since)),
-    )
-    return [(condition, order) for condition, order in session.execute(stmt)]
+            ParticipantRow.stage.not_in(ENDED_STAGES) & (ParticipantRow.last_activity_at >= active_since))))
+
+
+def live_assignments(session: Session, *, study_id: str, active_since: datetime,
+                     pilot: bool) -> list[tuple[str, list[int] | None, bool]]:
+    """Condition, task order and whether they consented, of the participants who count for balancing: finished,
+    or under way and active since active_since (pilots only with pilots)."""
+    stmt = select(ParticipantRow.condition, ParticipantRow.task_order, ParticipantRow.stage).where(
+        _taking_part(study_id, active_since, pilot))
+    return [(condition, order, stage != "consent") for condition, order, stage in session.execute(stmt)]
+
+
+def places_taken(session: Session, *, study_id: str, active_since: datetime, pilot: bool) -> int:
+    """How many places of a study are taken, as Prolific counts them: finished plus under way (active since
+    active_since; pilots only with pilots)."""
+    stmt = select(func.count()).select_from(ParticipantRow).where(_taking_part(study_id, active_since, pilot))
+    return int(session.execute(stmt).scalar_one())
 
 
 def stale_participants(session: Session, *, study_id: str, idle_since: datetime) -> list[ParticipantRow]:

@@ -66,6 +66,7 @@ class StudyRow(Base):
     quiz_max_attempts: Mapped[int] = mapped_column(Integer, default=2, server_default="2")
     timeout_minutes: Mapped[int | None] = mapped_column(Integer, nullable=True)
     robot_speed: Mapped[float] = mapped_column(Float, default=1.0, server_default=text("1.0"))  # playback rate 1-3
+    places: Mapped[int | None] = mapped_column(Integer, nullable=True)  # participants it takes (None: no limit)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)
 

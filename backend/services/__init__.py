@@ -23,7 +23,8 @@ from .codebook import CODEBOOK_COLUMNS, codebook_rows, export_files
 from .lifecycle import erase_participant, erasure_log, expire_timeouts, reset_pilot, withdraw
 from .notify import LocalNotifier
 from .monitoring import belief_summary, list_participants
-from .participants import answer_questionnaire, answer_quiz, finish_instructions, give_consent, join_study
+from .participants import (answer_questionnaire, answer_quiz, finish_instructions, give_consent, join_study,
+                           participant_id_of)
 from .state import STAGES, Expect, delete_recordings, participant_state
 from .studies import (
     ASSIGNMENTS,
@@ -122,6 +123,7 @@ __all__ = [
     "prepare_viewer",
     "participant_uid_of",
     "participant_state",
+    "participant_id_of",
     "place_object",
     "release_tab",
     "replay_execution",

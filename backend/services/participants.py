@@ -13,7 +13,7 @@ from typing import Any
 from ..config import Settings
 from ..db import repository as repo
 from ..db.tables import StudyRow, utcnow
-from ..errors import Conflict, InvalidInput, NotFound, ResumeRefused
+from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, StudyFull
 from .context import Context, app_version, commit
 from .state import Action, act, end_participation, require_stage, state_view, task_sequence
 from .studies import ITEM_KINDS
@@ -25,11 +25,13 @@ def _assign(s: Any, study: StudyRow, settings: Settings) -> tuple[str, list[int]
 
     Conditions: random, or balanced over the participants who finished or were active recently. Task order:
     fixed, random, or balanced (every order of the tasks, crossed with the balanced conditions, so that the
-    live participants' counts per condition x order differ by at most one). Ties are broken at random."""
+    live participants' counts per condition x order differ by at most one). Balance is over those who consented;
+    those who joined but have not consented (yet) only break ties, so joins that never consent (a flood of the
+    public link) cannot push real participants out of balance. Remaining ties are broken at random."""
     rng = secrets.SystemRandom()
     n_tasks = len(study.tasks)
     since = utcnow() - timedelta(minutes=settings.active_minutes)
-    live: list[tuple[str, list[int] | None]] = []
+    live: list[tuple[str, list[int] | None, bool]] = []
     if study.assignment == "balanced" or study.task_order == "balanced":
         live = repo.live_assignments(s, study_id=study.id, active_since=since, pilot=study.pilot)
     conditions = list(study.conditions)
@@ -39,10 +41,16 @@ def _assign(s: Any, study: StudyRow, settings: Settings) -> tuple[str, list[int]
         orders = [list(o) for o in itertools.permutations(range(n_tasks))]
     else:
         orders = [list(range(n_tasks))]
-    counts = Counter((c, tuple(o) if o else tuple(range(n_tasks))) for c, o in live)
+    consented = Counter((c, tuple(o) if o else tuple(range(n_tasks))) for c, o, yes in live if yes)
+    waiting = Counter((c, tuple(o) if o else tuple(range(n_tasks))) for c, o, yes in live if not yes)
+
+    def load(cell: tuple[str, list[int]]) -> tuple[int, int]:
+        key = (cell[0], tuple(cell[1]))
+        return consented[key], waiting[key]
+
     cells = [(c, o) for c in conditions for o in orders]
-    fewest = min(counts[(c, tuple(o))] for c, o in cells)
-    condition, order = rng.choice([(c, o) for c, o in cells if counts[(c, tuple(o))] == fewest])
+    fewest = min(load(cell) for cell in cells)
+    condition, order = rng.choice([cell for cell in cells if load(cell) == fewest])
     if study.task_order == "random":
         order = rng.sample(range(n_tasks), n_tasks)
     return condition, (None if study.task_order == "fixed" else order)
@@ -87,6 +95,12 @@ def join_study(
                 return state_view(s, existing, study), False
         if study.status != "open":
             raise Conflict(f"study {study_id!r} is {study.status}; participants can join only while it is open")
+        if study.places is not None:
+            since = utcnow() - timedelta(minutes=ctx.settings.active_minutes)
+            taken = repo.places_taken(s, study_id=study.id, active_since=since, pilot=study.pilot)
+            if taken >= study.places:
+                raise StudyFull(f"study {study_id!r} is full: it takes {study.places} participant(s) and {taken} "
+                                "have finished or are under way; a place frees when one leaves or goes idle")
         condition, task_order = _assign(s, study, ctx.settings)
         participant = repo.add_participant(s, values={
             "token": secrets.token_urlsafe(24),
@@ -110,6 +124,17 @@ def join_study(
         })
         commit(s)
         return state_view(s, participant, study), True
+
+
+def participant_id_of(ctx: Context, token: str) -> int:
+    """The number of the participant whose token this is (one query; NotAuthenticated for an unknown token).
+
+    For the long-lived connections, which need to know whose they are but not the whole state."""
+    with ctx.db.read() as s:
+        found = repo.get_participant_and_study(s, token=token)
+        if found is None:
+            raise NotAuthenticated("unknown participant token")
+        return int(found[0].id)
 
 
 def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str,

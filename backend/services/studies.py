@@ -52,10 +52,13 @@ CODE = re.compile(r"^[A-Za-z0-9_\-]{1,64}$")
 
 
 # What an experimenter may still change once participants can join (nothing they experience differently).
-LIVE_FIELDS = ("name", "pilot", "completion_code", "screened_out_code", "completion_url", "timeout_minutes")
+LIVE_FIELDS = ("name", "pilot", "completion_code", "screened_out_code", "completion_url", "timeout_minutes", "places")
 
 
 DEMO_STUDY_ID = "demo"
+
+
+MAX_PLACES = 100_000  # participants a study may take
 
 
 ROBOT_SPEEDS = (1.0, 3.0)  # a study shows the robot's motion 1x to 3x faster than recorded (recordings keep real time)
@@ -247,6 +250,9 @@ def _study_values(spec: dict[str, Any], problems: _Problems | None = None) -> di
     timeout = spec.get("timeout_minutes")
     if timeout is not None:
         _whole(problems, "timeout_minutes", timeout, 1, 1440)
+    places = spec.get("places")
+    if places is not None:
+        _whole(problems, "places", places, 1, MAX_PLACES)
     values = {
         "name": spec.get("name") or "Untitled study",
         "tasks": tasks,
@@ -265,6 +271,7 @@ def _study_values(spec: dict[str, Any], problems: _Problems | None = None) -> di
         "quiz": _check_quiz(spec.get("quiz") or [], problems),
         "quiz_max_attempts": attempts,
         "timeout_minutes": timeout,
+        "places": places,
         "robot_speed": float(speed) if isinstance(speed, (int, float)) else 1.0,
         "status": "draft",
     }
@@ -293,7 +300,7 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "completion_url": study.completion_url, "completion_code": study.completion_code,
         "screened_out_code": study.screened_out_code, "task_order": study.task_order, "quiz": study.quiz,
         "quiz_max_attempts": study.quiz_max_attempts, "timeout_minutes": study.timeout_minutes,
-        "robot_speed": study.robot_speed,
+        "robot_speed": study.robot_speed, "places": study.places,
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }
 

@@ -12,11 +12,13 @@ from fastapi import APIRouter, FastAPI
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
-from . import analysis, dashboard, motion, viewer
-from .auth import FailureLimiter, experimenter_checker
+from . import analysis, dashboard, events, motion, viewer
+from .auth import experimenter_checker
 from .deps import require_experimenter
-from .limits import BodyLimit
+from .events import Feeds
+from .limits import AddressLimiter, BodyLimit
 from .robots import make_recording_store, make_robot
+from .streams import StreamSlots
 from .schemas import error_responses
 
 DESCRIPTION = """Study server for teaching a robot to set a dinner table from demonstrations and verdicts.
@@ -54,10 +56,13 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.settings = settings
     app.state.experimenter = checker
     app.state.dev_token = dev_token
-    app.state.key_failures = FailureLimiter()
+    app.state.key_failures = AddressLimiter()
+    app.state.joins = AddressLimiter(settings.joins_per_address, settings.joins_window_seconds)
+    app.state.event_feeds = Feeds(StreamSlots(settings.streams_per_participant, settings.max_event_streams))
+    app.state.viewer_slots = StreamSlots(settings.streams_per_participant, settings.max_viewer_sockets)
     errors.install(app)
     app.add_middleware(BodyLimit)
-    for module in (participants, studies, exports, analysis, dashboard, motion, viewer, pages):
+    for module in (participants, studies, exports, analysis, dashboard, motion, viewer, events, pages):
         app.include_router(module.router, responses=_common_errors(module.router))
     app.include_router(studies.formulas, responses=_common_errors(studies.formulas))
     return app

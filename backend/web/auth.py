@@ -13,8 +13,6 @@ import hmac
 import math
 import secrets
 import threading
-import time
-from collections import OrderedDict, deque
 
 from ..config import Settings
 from .dev_token import persistent_dev_token
@@ -75,60 +73,26 @@ class SecretChecker:
         """Whether a check may cost real CPU (a legacy PBKDF2 hash: run it off the event loop)."""
         return self._pbkdf2 is not None
 
-    def check(self, secret: str) -> bool:
-        """Whether the secret is the key (constant-time comparison of digests)."""
+    def quick_check(self, secret: str) -> bool | None:
+        """Whether the secret is the key when that costs one SHA-256 (None: only the slow legacy check can tell)."""
         quick = hashlib.sha256(secret.encode()).digest()
         if self._pbkdf2 is None:
             return hmac.compare_digest(quick, self._digest)
         with self._lock:
-            if quick in self._verified:
-                return True
+            return True if quick in self._verified else None
+
+    def check(self, secret: str) -> bool:
+        """Whether the secret is the key (constant-time comparison of digests)."""
+        known = self.quick_check(secret)
+        if known is not None:
+            return known
+        quick = hashlib.sha256(secret.encode()).digest()
         iterations, salt, digest = self._pbkdf2
         ok = hmac.compare_digest(hashlib.pbkdf2_hmac("sha256", secret.encode(), salt, iterations), digest)
         if ok:
             with self._lock:
                 self._verified.add(quick)
         return ok
-
-
-class FailureLimiter:
-    """At most `limit` wrong keys per client address in a sliding `window`; then that address waits."""
-
-    def __init__(self, limit: int = 20, window: float = 60.0, max_clients: int = 10_000) -> None:
-        self.limit, self.window, self.max_clients = limit, window, max_clients
-        self._failures: OrderedDict[str, deque[float]] = OrderedDict()
-        self._lock = threading.Lock()
-
-    def _recent(self, client: str, now: float) -> deque[float] | None:
-        times = self._failures.get(client)
-        if times is None:
-            return None
-        while times and times[0] <= now - self.window:
-            times.popleft()
-        if not times:
-            del self._failures[client]
-            return None
-        return times
-
-    def retry_after(self, client: str) -> int:
-        """Seconds this address must wait before its next attempt (0: it may try now)."""
-        now = time.monotonic()
-        with self._lock:
-            times = self._recent(client, now)
-            if times is None or len(times) < self.limit:
-                return 0
-            return max(1, math.ceil(times[0] + self.window - now))
-
-    def failed(self, client: str) -> None:
-        """Count a wrong key from this address (the oldest addresses are forgotten beyond max_clients)."""
-        now = time.monotonic()
-        with self._lock:
-            times = self._recent(client, now) or deque()
-            times.append(now)
-            self._failures[client] = times
-            self._failures.move_to_end(client)
-            while len(self._failures) > self.max_clients:
-                self._failures.popitem(last=False)
 
 
 def experimenter_checker(settings: Settings) -> tuple[SecretChecker, str | None]:

@@ -31,10 +31,11 @@ def cmd_serve(args: argparse.Namespace) -> None:
     from .. import services
     from ..db.migrate import upgrade_head
     from .app import create_app
-    from .limits import LimitedHttpToolsProtocol
+    from .limits import LimitedHttpToolsProtocol, raise_open_files_limit
     from .dev_token import dev_token_path
 
     settings = _settings(args)
+    open_files, _hard = raise_open_files_limit()  # every held connection and event stream is a file descriptor
     app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
     upgrade_head(settings.database_url)
     base = settings.public_url or f"http://{settings.host}:{settings.port}"
@@ -50,9 +51,13 @@ def cmd_serve(args: argparse.Namespace) -> None:
     if app.state.dev_token:
         lines.append(f"development experimenter token (dev mode only; kept in {dev_token_path(settings.data_dir)}): "
                      f"{app.state.dev_token}")
+    if open_files < 2 * settings.max_event_streams:
+        lines.append(f"warning: this process may open only {open_files} files (ulimit -n) for up to "
+                     f"{settings.max_event_streams} event streams plus other connections; raise the limit")
     print("\n".join(lines), flush=True)
+    protocol = LimitedHttpToolsProtocol.with_timeouts(settings.header_timeout_seconds, settings.body_timeout_seconds)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, access_log=False,
-                timeout_graceful_shutdown=5, http=LimitedHttpToolsProtocol,
+                timeout_graceful_shutdown=5, http=protocol,
                 # Behind the proxy the client's address (for the wrong-key limit) comes from X-Forwarded-For.
                 proxy_headers=True, forwarded_allow_ips=settings.forwarded_allow_ips)
 

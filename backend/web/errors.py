@@ -10,7 +10,8 @@ from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..core.session import ProtocolError
-from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, TableTeachError, TryLater
+from ..errors import (Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, StudyFull, TableTeachError,
+                      TryLater)
 from .pages import error_page, is_page
 
 log = logging.getLogger(__name__)
@@ -39,12 +40,13 @@ def _validation_message(exc: RequestValidationError) -> str:
     return "; ".join(parts) or "invalid request"
 
 
-def _for(request: Request, answer: JSONResponse, *, resume_refused: bool = False) -> Response:
+def _for(request: Request, answer: JSONResponse, *, resume_refused: bool = False,
+         study_full: bool = False) -> Response:
     """Participant-facing pages (/study/..., /p/...) answer a plain-words HTML page instead of JSON."""
     if not is_page(request.url.path):
         return answer
     own = {k: v for k, v in answer.headers.items() if k not in ("content-type", "content-length")}
-    return error_page(answer.status_code, own, resume_refused=resume_refused)
+    return error_page(answer.status_code, own, resume_refused=resume_refused, study_full=study_full)
 
 
 def install(app: FastAPI) -> None:
@@ -57,7 +59,7 @@ def install(app: FastAPI) -> None:
         status = next((code for cls, code in STATUS.items() if isinstance(exc, cls)), 400)
         headers = {"WWW-Authenticate": "Bearer"} if status == 401 else None
         return _for(request, _answer(status, exc.message, exc.state, headers, getattr(exc, "errors", None)),
-                    resume_refused=isinstance(exc, ResumeRefused))
+                    resume_refused=isinstance(exc, ResumeRefused), study_full=isinstance(exc, StudyFull))
 
     @app.exception_handler(ProtocolError)
     async def _protocol_error(request: Request, exc: ProtocolError) -> Response:

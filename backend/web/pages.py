@@ -10,7 +10,7 @@ from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Resp
 from .. import services
 from ..errors import NotAuthenticated
 from .browser import browser_secret, remember_browser
-from .deps import ContextDep
+from .deps import ContextDep, JoinAllowed
 from .frontend_files import FRONTEND, allowed_file
 from .schemas import error_responses
 
@@ -55,7 +55,11 @@ PAGE_ERRORS = {
           "started yet, or it may be full or finished. Nothing about you has been recorded.</p>"),
     422: ("This link is incomplete", "<p>Part of the link is missing or damaged. Please open it again exactly "
           "as you were given it.</p>"),
+    429: ("Please wait a minute", "<p>Many people have just opened this study from your network. Please wait a "
+          "minute, then open the link again. Nothing about you has been recorded.</p>"),
 }
+STUDY_FULL = ("This study is full", "<p>All places in this study are taken, so it cannot take you now. Nothing "
+              "about you has been recorded.</p>")
 # A 409 on the join link when the PROLIFIC_PID joined before from another browser and Prolific session.
 RESUME_REFUSED = ("You have already started this study", "<p>This participant id has already started this study "
                   "in another browser. To continue, open the study link again in the browser you started in, or "
@@ -70,21 +74,25 @@ def is_page(path: str) -> bool:
     return path.startswith(PAGE_PREFIXES)
 
 
-def error_page(status: int, headers: dict[str, str] | None = None, *, resume_refused: bool = False) -> HTMLResponse:
+def error_page(status: int, headers: dict[str, str] | None = None, *, resume_refused: bool = False,
+               study_full: bool = False) -> HTMLResponse:
     """A plain-words HTML page for an error on a participant-facing address: what happened, what to do.
 
-    `headers` are the error's own (e.g. Allow on a 405); `resume_refused` for a 409 that refused to resume."""
-    title, body = (RESUME_REFUSED if resume_refused
+    `headers` are the error's own (e.g. Allow on a 405); `resume_refused` for a 409 that refused to resume,
+    `study_full` for one whose study has no place left."""
+    title, body = (RESUME_REFUSED if resume_refused else STUDY_FULL if study_full
                    else PAGE_ERRORS.get(status, SERVER_ERROR if status >= 500 else PAGE_ERRORS[400]))
     return HTMLResponse(PAGE.format(title=title, body=body + CONTACT), status_code=status,
                         headers={**(headers or {}), "Referrer-Policy": "no-referrer", "Cache-Control": "no-store"})
 
 
-@router.get("/study/{study_id}/join", response_class=RedirectResponse, status_code=303,
+@router.get("/study/{study_id}/join", response_class=RedirectResponse, status_code=303, dependencies=[JoinAllowed],
             responses={303: {"description": "to the participant's page /p/{token}"},
                        404: {"description": "no such study (an HTML page)", "content": {"text/html": {}}},
-                       409: {"description": "the study is not open, or this PROLIFIC_PID joined before from another "
-                             "browser and session (an HTML page)", "content": {"text/html": {}}},
+                       409: {"description": "the study is not open or full, or this PROLIFIC_PID joined before from "
+                             "another browser and session (an HTML page)", "content": {"text/html": {}}},
+                       429: {"description": "too many joins from this address; Retry-After (an HTML page)",
+                             "content": {"text/html": {}}},
                        422: {"description": "a damaged link (an HTML page)", "content": {"text/html": {}}}})
 def join_link(study_id: str, ctx: ContextDep, request: Request, PROLIFIC_PID: ExternalId = None,  # noqa: N803
               STUDY_ID: ExternalId = None, SESSION_ID: ExternalId = None) -> RedirectResponse:  # noqa: N803

@@ -9,7 +9,7 @@ from starlette.concurrency import run_in_threadpool
 
 from .. import services
 from .browser import browser_secret, remember_browser
-from .deps import ContextDep, IdempotencyKey, TokenDep
+from .deps import ContextDep, IdempotencyKey, JoinAllowed, TokenDep
 from .schemas import (AssessmentIn, ConsentIn, JoinIn, JoinOut, ParticipantState, PlacementIn,
                       QuestionnaireIn, QuizIn, StepGuard, error_responses)
 
@@ -27,12 +27,14 @@ def _expect(guard: StepGuard | None) -> services.Expect:
 
 
 @router.post("/studies/{study_id}/join", response_model=JoinOut, status_code=status.HTTP_201_CREATED,
+             dependencies=[JoinAllowed],
              responses={200: {"model": JoinOut, "description": "this external id joined before: the same participant"},
-                        **error_responses(404)})
+                        **error_responses(404, 429)})
 async def join(study_id: str, ctx: ContextDep, request: Request, response: Response,
                body: JoinIn | None = None) -> dict:
     """Join an open study. A prolific_pid seen before returns the same participant (200) only with the same
-    session_id or from the same browser (its cookie); otherwise 409."""
+    session_id or from the same browser (its cookie); otherwise 409, as when the study is full (its places are
+    taken). Too many joins from one address answer 429 with Retry-After."""
     body = body or JoinIn()
     secret = browser_secret(request)
     state, created = await run_in_threadpool(

@@ -137,6 +137,8 @@ class StudyIn(Strict):
     timeout_minutes: int | None = Field(None, ge=1, le=1440)
     robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
                                "than real time (recordings keep real time)")
+    places: int | None = Field(None, ge=1, le=100_000, description="participants the study takes, counted as Prolific "
+                               "does (finished plus under way); then joining answers 409 (empty: no limit)")
 
 
 STUDY_FIELDS = tuple(StudyIn.model_fields)
@@ -167,6 +169,7 @@ class StudyOut(BaseModel):
     quiz_max_attempts: int
     timeout_minutes: int | None
     robot_speed: float = 1.0
+    places: int | None = None
     created_at: str | None
     updated_at: str | None
 
@@ -244,10 +247,10 @@ ERROR_MEANINGS = {
     400: "the body could not be parsed",
     401: "missing or wrong token",
     404: "no such study, participant or export",
-    409: "out of order, stale step, reused Idempotency-Key or study not open; includes the current state",
+    409: "out of order, stale step, reused Idempotency-Key, study not open or full; includes the current state",
     413: "request body over 1 MiB",
     422: "malformed request or unacceptable values",
-    429: "too many wrong experimenter tokens from this address; wait Retry-After seconds",
+    429: "too many wrong experimenter tokens, or joins, from this address; wait Retry-After seconds",
     503: "the database is busy or unavailable; try again after Retry-After seconds (nothing was lost)",
 }
 

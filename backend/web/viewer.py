@@ -1,6 +1,6 @@
 """The participant page's live links: the same-origin 3D view (viser's client page plus a websocket proxy
-to the process's viser server on 127.0.0.1, one scene per browser), the robot's activity, change notices as
-server-sent events, and the one-tab lease.
+to the process's viser server on 127.0.0.1, one scene per browser), the robot's activity and the one-tab lease
+(the change notices, as server-sent events, are in web/events.py).
 
 This module and tableteach.sim are the only code that knows viser's ports (the robot gives the proxy a
 ViewAddress). The proxy checks the participant's token and forwards viser's version subprotocol
@@ -11,16 +11,13 @@ from __future__ import annotations
 
 import asyncio
 import gzip
-import json
 import logging
-import time
-from collections.abc import AsyncIterator, Awaitable, Callable
 from functools import lru_cache
 from typing import Any
 
 import websockets
 from fastapi import APIRouter, Request, WebSocket
-from fastapi.responses import HTMLResponse, Response, StreamingResponse
+from fastapi.responses import HTMLResponse, Response
 from pydantic import BaseModel, ConfigDict, Field
 from starlette.concurrency import run_in_threadpool
 from starlette.websockets import WebSocketDisconnect
@@ -31,15 +28,12 @@ from .deps import ContextDep, IdempotencyKey, TokenDep
 from .motion import playback_url
 from .robots import viewer_client_html
 from .schemas import ParticipantState, StepGuard, error_responses
+from .streams import run_held
 
 log = logging.getLogger(__name__)
 router = APIRouter(tags=["participant page"])
 TabId = Field(min_length=8, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
 CLOSE_POLICY = 1008  # websocket close code: the request broke a rule (bad token, no view now)
-EVENTS_KEEPALIVE_SECONDS = 15.0  # a comment line this often keeps proxies from closing a quiet stream
-EVENTS_STREAM_SECONDS = 300.0  # then the stream ends and the browser reconnects (a restart never waits on it)
-EVENTS_RETRY_MS = 1000
-STORED_CLOCK_GRACE_SECONDS = 0.3  # a timer's notice of an action end normally comes first; this is the back-up
 
 
 class TabIn(BaseModel):
@@ -171,7 +165,9 @@ async def viewer_socket(websocket: WebSocket, token: str) -> None:
         return
     async with upstream:
         await websocket.accept(subprotocol=upstream.subprotocol)
-        await _pump(websocket, upstream)
+        # At most a few views per participant (a newer one ends the oldest) and a cap for the process.
+        if not await run_held(websocket.app.state.viewer_slots, token, _pump(websocket, upstream)):
+            await websocket.close(code=1013, reason="too many 3D views are open on this server; reload in a minute")
 
 
 async def _pump(browser: WebSocket, upstream: Any) -> None:
@@ -209,73 +205,6 @@ async def _pump(browser: WebSocket, upstream: Any) -> None:
             await browser.close()
         except (RuntimeError, WebSocketDisconnect):
             pass  # the browser has gone already
-
-
-@router.get("/p/{token}/events", include_in_schema=False)
-async def change_events(token: str, ctx: ContextDep) -> Response:
-    """Server-sent events: `change` whenever the participant's state or robot changes.
-
-    Each event's data is {"n": change counter, "robot": GET /me/robot's answer}, so the page can show the
-    robot busy at once; it then reads GET /api/v1/me as usual. EventSource cannot send an Authorization
-    header, so the token comes from the page's own path (the page's address carries it already).
-    """
-    try:
-        state = await run_in_threadpool(services.participant_state, ctx, token)
-    except NotAuthenticated:
-        return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
-    pid = int(state["participant_id"])
-    headers = {"Cache-Control": "no-store", "X-Accel-Buffering": "no", "Referrer-Policy": "no-referrer"}
-    def activity() -> dict | None:
-        try:
-            return services.robot_activity(ctx, token)
-        except Exception:  # the activity is a head start for the page; it reads the state next anyway
-            log.exception("robot activity for a change event failed")
-            return None
-
-    def next_change() -> float | None:
-        try:
-            return services.next_robot_change(ctx, token)
-        except Exception:  # the stored clock is a back-up for the notices; they keep coming without it
-            log.exception("the next stored action end for a change event failed")
-            return None
-
-    stream = _change_stream(ctx.notifier, pid, lambda: run_in_threadpool(activity),
-                            lambda: run_in_threadpool(next_change))
-    return StreamingResponse(stream, media_type="text/event-stream", headers=headers)
-
-
-async def _no_change() -> float | None:
-    return None
-
-
-async def _change_stream(notifier: services.LocalNotifier, pid: int,
-                         activity: Callable[[], Awaitable[dict | None]],
-                         next_change: Callable[[], Awaitable[float | None]] = _no_change) -> AsyncIterator[str]:
-    """A change event at once, then on every change; keep-alive comments between; ends after a while.
-
-    The execution's stored plan says when its next action ends: if no notice has come by then (the process
-    whose timer announces it may have gone), the stream sends a change event of its own."""
-    seen = notifier.counter(pid)
-    yield f"retry: {EVENTS_RETRY_MS}\n" + _event(seen, await activity())
-    ends = time.monotonic() + EVENTS_STREAM_SECONDS
-    due = await next_change()
-    due_at = None if due is None else time.monotonic() + due + STORED_CLOCK_GRACE_SECONDS
-    while (left := ends - time.monotonic()) > 0:
-        wait = min(EVENTS_KEEPALIVE_SECONDS, left)
-        if due_at is not None:
-            wait = max(0.0, min(wait, due_at - time.monotonic()))
-        current = await notifier.wait(pid, seen, wait)
-        if current != seen or (due_at is not None and time.monotonic() >= due_at):
-            seen = current
-            yield _event(seen, await activity())
-            due = await next_change()
-            due_at = None if due is None else time.monotonic() + due + STORED_CLOCK_GRACE_SECONDS
-        else:
-            yield ": still here\n\n"
-
-
-def _event(counter: int, robot: dict | None) -> str:
-    return f"event: change\ndata: {json.dumps({'n': counter, 'robot': robot}, separators=(',', ':'))}\n\n"
 
 
 @router.post("/api/v1/me/view", response_model=ViewOut, responses=error_responses(401))

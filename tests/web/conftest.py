@@ -20,6 +20,9 @@ import pytest
 from tableteach.client import ExperimenterClient
 
 EXPERIMENTER_TOKEN = "test-experimenter-token-0123456789"
+# Tests join many participants from one address; the per-address join limit has its own tests
+# (test_abuse_limits.py), which set it low.
+JOINS_UNLIMITED = {"TABLETEACH_JOINS_PER_ADDRESS": "100000"}
 QUESTIONNAIRE = [
     {"id": "learned", "text": "The robot learned the task.", "kind": "likert5"},
     {"id": "overall", "text": "Overall rating", "kind": "rating10"},
@@ -53,7 +56,7 @@ class ServerProcess:
         """Start and wait until /healthz answers."""
         self.port = free_port()
         env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": EXPERIMENTER_TOKEN,
-               "TABLETEACH_DATA_DIR": str(self.db_path.parent / "data"), **self.env}
+               "TABLETEACH_DATA_DIR": str(self.db_path.parent / "data"), **JOINS_UNLIMITED, **self.env}
         env.pop("TABLETEACH_DEV_MODE", None)
         log = open(self.db_path.with_suffix(f".{self.port}.log"), "wb")
         self.proc = subprocess.Popen(
@@ -146,7 +149,7 @@ def in_process_app(tmp_path: Path, robot: Any = None) -> Iterator[Any]:
     from tableteach.web.app import create_app
 
     settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN,
-                        data_dir=tmp_path / "data")
+                        data_dir=tmp_path / "data", joins_per_address=100_000)
     upgrade_head(settings.database_url)
     context = None if robot is None else Context.from_settings(settings, robot)
     app = create_app(settings, context=context)

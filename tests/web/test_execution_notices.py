@@ -14,7 +14,8 @@ import pytest
 
 from tableteach.robot import ExecutionPlan, TraceRobot
 from tableteach.services import LocalNotifier, executions
-from tableteach.web.viewer import _change_stream
+from tableteach.web.events import Feeds, stream
+from tableteach.web.streams import StreamSlots
 
 from .conftest import EXPERIMENTER_TOKEN, in_process_app
 from .helpers import bearer, demonstrate, make_study, to_teaching
@@ -159,19 +160,19 @@ def test_the_event_stream_wakes_itself_at_the_next_stored_action_end() -> None:
     notifier = LocalNotifier()  # nobody publishes: the process with the timer has gone
     dues = [0.05, None]
 
-    async def activity() -> dict:
-        return {"moving": True}
-
-    async def next_change() -> float | None:
-        return dues.pop(0) if dues else None
+    async def read() -> tuple[dict, float | None]:
+        return {"moving": True}, (dues.pop(0) if dues else None)
 
     async def scenario() -> list[str]:
-        stream = _change_stream(notifier, 5, activity, next_change)
-        first = await anext(stream)
+        feeds = Feeds(StreamSlots(2, 10))
+        opened = feeds.open(5, notifier, read)
+        assert opened is not None
+        events = stream(feeds, *opened)
+        first = await anext(events)
         t0 = time.monotonic()
-        second = await asyncio.wait_for(anext(stream), 60.0)
+        second = await asyncio.wait_for(anext(events), 60.0)
         assert time.monotonic() - t0 >= 0.05
-        await stream.aclose()
+        await events.aclose()
         return [first, second]
 
     first, second = run_scenario(scenario)

@@ -11,7 +11,9 @@ import pytest
 from tableteach.core.domain import get_domain
 from tableteach.services import TASK_FORMULAS, LocalNotifier
 from tableteach.services.guidance import lay_summary, required_objects
-from tableteach.web.viewer import _change_stream, participant_client_html
+from tableteach.web.events import Feeds, stream
+from tableteach.web.streams import StreamSlots
+from tableteach.web.viewer import participant_client_html
 
 from .helpers import EXP, bearer, demonstrate, make_study, to_teaching
 from tests.async_run import run_scenario
@@ -39,15 +41,19 @@ def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise()
 def test_the_event_stream_sends_the_counter_then_each_change() -> None:
     notifier = LocalNotifier()
 
-    async def activity() -> dict:
-        return {"moving": notifier.counter(3) > 0}
+    async def read() -> tuple[dict, None]:
+        return {"moving": notifier.counter(3) > 0}, None
 
     async def scenario() -> list[str]:
-        stream = _change_stream(notifier, 3, activity)
-        first = await anext(stream)
+        feeds = Feeds(StreamSlots(2, 10))
+        opened = feeds.open(3, notifier, read)
+        assert opened is not None
+        events = stream(feeds, *opened)
+        first = await anext(events)
         asyncio.get_running_loop().call_later(0.05, notifier.publish, 3)
-        second = await asyncio.wait_for(anext(stream), 5.0)
-        await stream.aclose()
+        second = await asyncio.wait_for(anext(events), 5.0)
+        await events.aclose()
+        assert feeds.feed(3) is None  # the last stream closed: the feed stopped
         return [first, second]
 
     first, second = run_scenario(scenario)

@@ -1,7 +1,7 @@
 """durable background work: the jobs table of services.runtime
 
-Revision ID: 0005_runtime_jobs
-Revises: 0004_participant_ux
+Revision ID: 0006_runtime_jobs
+Revises: 0005_abuse_limits
 Create Date: 2026-12-02 00:00:00
 """
 
@@ -12,8 +12,8 @@ from collections.abc import Sequence
 import sqlalchemy as sa
 from alembic import op
 
-revision: str = '0005_runtime_jobs'
-down_revision: str | None = '0004_participant_ux'
+revision: str = '0006_runtime_jobs'
+down_revision: str | None = '0005_abuse_limits'
 branch_labels: str | Sequence[str] | None = None
 depends_on: str | Sequence[str] | None = None
 
