@@ -1,0 +1,107 @@
+"""The participant page through a crash: the server is killed with -9 during a demonstration (one placement
+acknowledged and maybe not yet reported by the robot) and started again; the page recovers by itself, and its
+3D view shows the same objects in the same places as before the crash (as its panel says)."""
+
+from __future__ import annotations
+
+import io
+import time
+from pathlib import Path
+
+import httpx
+import numpy as np
+import pytest
+from PIL import Image
+
+from tests.web.conftest import ServerProcess, open_study, study_spec
+
+pytestmark = pytest.mark.browser
+WAIT_MS = 120_000
+
+
+class RestartableServer(ServerProcess):
+    """A server process that comes back on the same port after kill() (the page's address stays valid)."""
+
+    def start(self) -> "RestartableServer":
+        port = self.port
+        super().start() if not port else self._start_on(port)
+        return self
+
+    def _start_on(self, port: int) -> None:
+        from tests.web import conftest
+
+        chosen = conftest.free_port
+        conftest.free_port = lambda: port  # type: ignore[assignment]
+        try:
+            super().start()
+        finally:
+            conftest.free_port = chosen
+
+
+def _view_pixels(page) -> np.ndarray:
+    """The 3D view as grey pixels (the embedded viewer frame only)."""
+    box = page.locator("#viewer-frame").bounding_box()
+    assert box is not None, "the page shows no 3D view"
+    shot = page.screenshot(clip=box, animations="disabled", timeout=WAIT_MS)
+    return np.asarray(Image.open(io.BytesIO(shot)).convert("L"), dtype=float)
+
+
+def _settled_view(page, seconds: float = 4.0) -> np.ndarray:
+    """The view once it has stopped changing (software WebGL draws slowly)."""
+    last = _view_pixels(page)
+    deadline = time.monotonic() + 90
+    while time.monotonic() < deadline:
+        time.sleep(seconds)
+        now = _view_pixels(page)
+        if now.shape == last.shape and np.abs(now - last).mean() < 0.5:
+            return now
+        last = now
+    return last
+
+
+def test_the_page_recovers_from_a_kill_and_its_view_agrees_with_its_panel(browser_page, tmp_path: Path) -> None:
+    page = browser_page
+    server = RestartableServer(tmp_path / "crash.db", TABLETEACH_ROBOT="mujoco", TABLETEACH_ROBOT_SPEED="4",
+                               TABLETEACH_JOINS_PER_ADDRESS="1000")
+    from tableteach.db.migrate import upgrade_head
+
+    upgrade_head(server.database_url)
+    server.start()
+    try:
+        study_id = open_study(server.url, study_spec(["active"], n_practice=0, n_demonstrations=2, n_queries=1,
+                                                     n_tests=0))
+        page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=crash-1&STUDY_ID=s1&SESSION_ID=x1")
+        page.get_by_role("button", name="I agree, continue").click()
+        page.get_by_role("button", name="Start").click()
+        page.get_by_role("button", name="Begin this task").click()
+        page.wait_for_selector("#viewer-frame", timeout=WAIT_MS)
+        empty = _settled_view(page)
+
+        page.locator('button.object[data-object="dinner_plate"]').click()
+        page.wait_for_function("document.querySelector('.placed')?.textContent.includes('dinner plate')",
+                               timeout=WAIT_MS)
+        page.wait_for_selector("#finish:not([disabled])", timeout=WAIT_MS)  # the robot has placed it
+        page.locator('button.object[data-object="bowl"]').click()  # acknowledged, then the crash at once
+        page.wait_for_function("document.querySelector('.placed')?.textContent.includes('bowl')", timeout=WAIT_MS)
+        server.kill()
+        server.start()
+
+        # Nothing but the page's own reads and event stream from here on.
+        page.wait_for_selector("#finish:not([disabled])", timeout=WAIT_MS)
+        placed = page.locator(".placed").inner_text()
+        assert "dinner plate" in placed and "bowl" in placed
+        token = page.url.rstrip("/").rsplit("/", 1)[-1]
+        state = httpx.get(f"{server.url}/api/v1/me", headers={"Authorization": f"Bearer {token}"}, timeout=60).json()
+        assert state["demonstration"]["placed"] == ["dinner_plate", "bowl"] and state["demonstration"]["settled"]
+        after = _settled_view(page)
+
+        # The same scene rebuilt: a fresh table with the two objects placed, as a view of the stored placements.
+        page.reload()
+        page.wait_for_selector("#finish:not([disabled])", timeout=WAIT_MS)
+        reloaded = _settled_view(page)
+        assert after.shape == reloaded.shape == empty.shape
+        same = np.abs(after - reloaded).mean()
+        moved = np.abs(empty - reloaded).mean()
+        assert moved > 4 * max(same, 0.25), (same, moved)  # the view shows the placed objects, not a reset table
+    finally:
+        server.kill()
