@@ -17,11 +17,7 @@ def _settings(args: argparse.Namespace) -> Settings:
             overrides[name] = value
     if getattr(args, "dev", False) or getattr(args, "demo", False):
         overrides["dev_mode"] = True
-    settings = Settings(**overrides)
-    if getattr(args, "demo", False) and "robot" not in settings.model_fields_set:
-        # The demo is there to be looked at: show the arm unless a robot was chosen explicitly.
-        settings = settings.model_copy(update={"robot": "mujoco"})
-    return settings
+    return Settings(**overrides)
 
 
 def cmd_serve(args: argparse.Namespace) -> None:
@@ -132,9 +128,10 @@ def register(sub: argparse._SubParsersAction) -> None:
     serve.add_argument("--port", type=int, help="port (default 8000; TABLETEACH_PORT)")
     serve.add_argument("--database-url", help="SQLAlchemy URL (default sqlite:///var/tableteach.db)")
     serve.add_argument("--demo", action="store_true",
-                       help="seed the demo study (implies --dev; the MuJoCo robot unless --robot or TABLETEACH_ROBOT)")
+                       help="seed the demo study (implies --dev)")
     serve.add_argument("--robot", choices=["trace", "mujoco"],
-                       help="robot: trace (no physics) or mujoco (simulated arm shown in the page); TABLETEACH_ROBOT")
+                       help="robot: mujoco (default: the simulated arm shown in the page) or trace "
+                            "(no physics, for tests and load runs); TABLETEACH_ROBOT")
     serve.add_argument("--data-dir", help="folder for robot recordings (default var/data; TABLETEACH_DATA_DIR)")
     serve.add_argument("--dev", action="store_true", help="dev mode: a generated experimenter token if none is set")
     serve.add_argument("--log-level", default="warning", choices=["critical", "error", "warning", "info", "debug"])
