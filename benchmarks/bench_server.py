@@ -49,8 +49,8 @@ def _free_port() -> int:
 def _start_server(folder: Path, token: str) -> tuple[subprocess.Popen[bytes], str]:
     port = _free_port()
     env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": token}
-    proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "serve", "--port", str(port),
-                             "--database-url", f"sqlite:///{folder / 'bench.db'}"],
+    proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "serve", "--migrate", "--robot", "trace",
+                             "--port", str(port), "--database-url", f"sqlite:///{folder / 'bench.db'}"],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     for _ in range(300):

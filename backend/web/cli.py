@@ -1,4 +1,4 @@
-"""Server subcommands of `tableteach`: serve, teach (scripted teacher over HTTP), export, key, hash-token."""
+"""Server subcommands of `tableteach`: serve, migrate, teach (scripted teacher over HTTP), export, key, hash-token."""
 
 from __future__ import annotations
 
@@ -21,18 +21,25 @@ def _settings(args: argparse.Namespace) -> Settings:
 
 
 def cmd_serve(args: argparse.Namespace) -> None:
-    """Migrate the database, optionally seed the demo study, and serve until interrupted."""
+    """Check (or with --migrate, migrate) the database, optionally seed the demo study, and serve until interrupted."""
     import uvicorn
 
     from .. import services
-    from ..db.migrate import upgrade_head
+    from ..db.migrate import schema_problem, upgrade_head
     from .app import create_app
+    from .auth import experimenter_checker
     from .limits import LimitedHttpToolsProtocol
     from .dev_token import dev_token_path
 
     settings = _settings(args)
-    app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
-    upgrade_head(settings.database_url)
+    experimenter_checker(settings)  # refuses a missing or weak experimenter secret before touching the database
+    if args.migrate or args.demo:
+        upgrade_head(settings.database_url)
+    else:
+        problem = schema_problem(settings.database_url, _safe_url(settings.database_url))
+        if problem is not None:
+            raise ValueError(problem)  # one line on stderr, exit 2
+    app = create_app(settings)
     base = settings.public_url or f"http://{settings.host}:{settings.port}"
     lines = [f"TableTeach serving on http://{settings.host}:{settings.port} "
              f"(database {_safe_url(settings.database_url)}, "
@@ -51,6 +58,17 @@ def cmd_serve(args: argparse.Namespace) -> None:
                 timeout_graceful_shutdown=5, http=LimitedHttpToolsProtocol,
                 # Behind the proxy the client's address (for the wrong-key limit) comes from X-Forwarded-For.
                 proxy_headers=True, forwarded_allow_ips=settings.forwarded_allow_ips)
+
+
+def cmd_migrate(args: argparse.Namespace) -> dict:
+    """Bring the database to the newest schema revision; which revision it was at and is at now."""
+    from ..db.migrate import current_revision, upgrade_head
+
+    settings = _settings(args)
+    before = current_revision(settings.database_url)
+    upgrade_head(settings.database_url)
+    return {"database": _safe_url(settings.database_url), "from_revision": before,
+            "to_revision": current_revision(settings.database_url)}
 
 
 def _safe_url(url: str) -> str:
@@ -134,8 +152,15 @@ def register(sub: argparse._SubParsersAction) -> None:
                             "(no physics, for tests and load runs); TABLETEACH_ROBOT")
     serve.add_argument("--data-dir", help="folder for robot recordings (default var/data; TABLETEACH_DATA_DIR)")
     serve.add_argument("--dev", action="store_true", help="dev mode: a generated experimenter token if none is set")
+    serve.add_argument("--migrate", action="store_true",
+                       help="migrate the database to the newest schema first (without it, serve refuses a database "
+                            "that is not migrated; --demo implies it)")
     serve.add_argument("--log-level", default="warning", choices=["critical", "error", "warning", "info", "debug"])
     serve.set_defaults(run=cmd_serve)
+
+    migrate = sub.add_parser("migrate", help="migrate the database to the newest schema (back it up first)")
+    migrate.add_argument("--database-url", help="SQLAlchemy URL (default: TABLETEACH_DATABASE_URL)")
+    migrate.set_defaults(run=cmd_migrate)
 
     teach = sub.add_parser("teach", help="a scripted teacher completes a participant session over HTTP")
     teach.add_argument("--server", required=True, help="server base URL, e.g. http://127.0.0.1:8000")

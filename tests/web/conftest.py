@@ -58,7 +58,7 @@ class ServerProcess:
         env.pop("TABLETEACH_DEV_MODE", None)
         log = open(self.db_path.with_suffix(f".{self.port}.log"), "wb")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "tableteach.cli", "serve", "--port", str(self.port),
+            [sys.executable, "-m", "tableteach.cli", "serve", "--migrate", "--port", str(self.port),
              "--database-url", self.database_url],
             env=env, stdout=log, stderr=subprocess.STDOUT,
         )
