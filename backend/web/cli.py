@@ -1,4 +1,5 @@
-"""Server subcommands of `tableteach`: serve, migrate, teach (scripted teacher over HTTP), export, key, hash-token."""
+"""Server subcommands of `tableteach`: serve, migrate, backup, restore, teach (a scripted teacher over HTTP), export,
+key, hash-token."""
 
 from __future__ import annotations
 
@@ -69,6 +70,31 @@ def cmd_migrate(args: argparse.Namespace) -> dict:
     upgrade_head(settings.database_url)
     return {"database": _safe_url(settings.database_url), "from_revision": before,
             "to_revision": current_revision(settings.database_url)}
+
+
+def cmd_backup(args: argparse.Namespace) -> dict:
+    """Back up the database and the data folder (recordings) into one archive, also while the server runs."""
+    from ..db.backup import create_backup
+
+    settings = _settings(args)
+    manifest = create_backup(settings.database_url, settings.data_dir, args.out)
+    return {"out": str(args.out), "database": _safe_url(settings.database_url), "data_dir": str(settings.data_dir),
+            "schema_revision": manifest["schema_revision"], "files": len(manifest["files"]),
+            "bytes": sum(f["size"] for f in manifest["files"])}
+
+
+def cmd_restore(args: argparse.Namespace) -> dict:
+    """Restore a backup into an empty database and data folder (stop the server first)."""
+    from ..db.backup import restore_backup
+    from ..db.migrate import head_revision
+
+    settings = _settings(args)
+    manifest = restore_backup(args.archive, settings.database_url, settings.data_dir, force=args.force)
+    behind = manifest["schema_revision"] != head_revision()
+    return {"restored": str(args.archive), "database": _safe_url(settings.database_url),
+            "data_dir": str(settings.data_dir), "schema_revision": manifest["schema_revision"],
+            "created_at": manifest["created_at"], "files": len(manifest["files"]),
+            "next": "tableteach migrate, then tableteach serve" if behind else "tableteach serve"}
 
 
 def _safe_url(url: str) -> str:
@@ -161,6 +187,21 @@ def register(sub: argparse._SubParsersAction) -> None:
     migrate = sub.add_parser("migrate", help="migrate the database to the newest schema (back it up first)")
     migrate.add_argument("--database-url", help="SQLAlchemy URL (default: TABLETEACH_DATABASE_URL)")
     migrate.set_defaults(run=cmd_migrate)
+
+    backup = sub.add_parser("backup", help="back up the database and the recordings into one .tar.gz "
+                                           "(safe while the server runs)")
+    backup.add_argument("--out", required=True, help="archive to write, e.g. backups/tableteach-2026-12-01.tar.gz")
+    backup.add_argument("--database-url", help="SQLAlchemy URL (default: TABLETEACH_DATABASE_URL)")
+    backup.add_argument("--data-dir", help="folder of the recordings (default: TABLETEACH_DATA_DIR)")
+    backup.set_defaults(run=cmd_backup)
+
+    restore = sub.add_parser("restore", help="restore a backup into an empty database and data folder")
+    restore.add_argument("archive", help="a file made by `tableteach backup`")
+    restore.add_argument("--database-url", help="SQLAlchemy URL to restore into (default: TABLETEACH_DATABASE_URL)")
+    restore.add_argument("--data-dir", help="folder to restore the recordings into (default: TABLETEACH_DATA_DIR)")
+    restore.add_argument("--force", action="store_true",
+                         help="replace a database that has tables and files that exist (default: refuse)")
+    restore.set_defaults(run=cmd_restore)
 
     teach = sub.add_parser("teach", help="a scripted teacher completes a participant session over HTTP")
     teach.add_argument("--server", required=True, help="server base URL, e.g. http://127.0.0.1:8000")
