@@ -8,8 +8,8 @@ from fastapi import Depends, Header, Path, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from starlette.concurrency import run_in_threadpool
 
-from ..errors import NotAuthenticated, TryLater
-from ..services import Context
+from ..errors import Forbidden, NotAuthenticated, TryLater
+from ..services import Context, accounts
 from .auth import FailureLimiter, SecretChecker
 
 _participant_bearer = HTTPBearer(auto_error=False, scheme_name="ParticipantToken",
@@ -37,7 +37,8 @@ async def require_experimenter(
     request: Request,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_experimenter_bearer)],
 ) -> None:
-    """Refuse the request unless it carries the experimenter key; too many wrong keys from one address get 429."""
+    """Refuse the request unless it carries the server's experimenter key (the bootstrap owner) or a person's valid
+    API token whose role allows it (403 otherwise); too many wrong keys from one address get 429."""
     checker: SecretChecker = request.app.state.experimenter
     limiter: FailureLimiter = request.app.state.key_failures
     if credentials is None or not credentials.credentials:
@@ -49,9 +50,18 @@ async def require_experimenter(
                        retry_after=wait, status=429)
     ok = (await run_in_threadpool(checker.check, credentials.credentials) if checker.slow
           else checker.check(credentials.credentials))
-    if not ok:
-        limiter.failed(client)
-        raise NotAuthenticated("wrong experimenter token")
+    if ok:
+        actor = accounts.BOOTSTRAP
+    else:
+        found = await run_in_threadpool(accounts.actor_of_token, request.app.state.context, credentials.credentials)
+        if found is None:
+            limiter.failed(client)
+            raise NotAuthenticated("wrong, expired or revoked experimenter token")
+        actor = found
+    request.state.experimenter = actor  # read by the audit log (web/audit.py), which records refused writes too
+    if not accounts.allowed(actor.role, request.method, request.url.path):
+        raise Forbidden(f"{actor.name} has the role {actor.role}, which may not {request.method} {request.url.path} "
+                        "(analyst: read and export only; experimenter: studies and participants; owner: everything)")
 
 
 ContextDep = Annotated[Context, Depends(get_context)]
