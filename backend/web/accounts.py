@@ -15,9 +15,11 @@ from ..services import accounts
 from .auth import FailureLimiter
 from .deps import MAX_ID, ContextDep, Experimenter
 from .exports import csv_lines
+from .schemas import error_responses
 
-router = APIRouter(prefix="/api/v1", tags=["accounts"], dependencies=[Experimenter])
-public = APIRouter(prefix="/api/v1", tags=["accounts"])
+router = APIRouter(prefix="/api/v1", tags=["accounts"], dependencies=[Experimenter],
+                   responses=error_responses(400, 401, 404, 409, 422))
+public = APIRouter(prefix="/api/v1", tags=["accounts"], responses=error_responses(400, 401, 422, 429))
 TokenId = Annotated[int, Path(ge=1, le=MAX_ID, description="the API token's number")]
 
 

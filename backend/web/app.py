@@ -29,10 +29,10 @@ experimenters with the server's experimenter token. Every participant action acc
 
 def _common_errors(router: APIRouter) -> dict[int | str, dict[str, Any]]:
     """Answers any route of the router can give: 413 (body too large), 503 (database busy or gone) and, behind
-    the experimenter key, 429 (too many wrong keys)."""
+    the experimenter key, 403 (a role that may not) and 429 (too many wrong keys)."""
     codes = [413, 503]
     if any(getattr(dep, "dependency", None) is require_experimenter for dep in router.dependencies):
-        codes.append(429)
+        codes += [403, 429]
     return error_responses(*codes)
 
 
