@@ -28,7 +28,8 @@ class Settings(BaseSettings):
     experimenter_token_hash: str | None = Field(None,
         description="sha256$<hex> of the key (from `tableteach key` or `tableteach hash-token`)")
     robot: Literal["trace", "mujoco"] = Field(
-        "trace", description="robot implementation: 'trace' (no physics) or 'mujoco' (simulated arm, 3D view)")
+        "mujoco", description="robot implementation: 'mujoco' (simulated arm, 3D view; what participants see) or "
+                              "'trace' (no physics, no 3D view: for tests and load runs)")
     robot_seconds_per_object: float = Field(0.0, ge=0.0, le=60.0,
         description="how long the trace robot takes per placement")
     robot_speed: float = Field(1.0, gt=0.0, le=50.0,

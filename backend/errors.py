@@ -46,6 +46,10 @@ class NotAuthenticated(TableTeachError):
     """Missing or wrong credentials (HTTP 401)."""
 
 
+class Forbidden(TableTeachError):
+    """Known credentials whose role does not allow this request (HTTP 403)."""
+
+
 class TryLater(TableTeachError):
     """Not now: too many wrong attempts (HTTP 429) or the database is busy or missing (HTTP 503)."""
 

@@ -50,8 +50,8 @@ def _start_server(folder: Path, token: str) -> tuple[subprocess.Popen[bytes], st
     port = _free_port()
     # Every simulated participant joins from 127.0.0.1: lift the per-address join limit for the benchmark.
     env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": token, "TABLETEACH_JOINS_PER_ADDRESS": "100000"}
-    proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "serve", "--port", str(port),
-                             "--database-url", f"sqlite:///{folder / 'bench.db'}"],
+    proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "serve", "--migrate", "--robot", "trace",
+                             "--port", str(port), "--database-url", f"sqlite:///{folder / 'bench.db'}"],
                             env=env, stdout=subprocess.DEVNULL, stderr=subprocess.STDOUT)
     url = f"http://127.0.0.1:{port}"
     for _ in range(300):

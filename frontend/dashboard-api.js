@@ -58,6 +58,17 @@ export async function checkToken(candidate) {
   return request("GET", `${API}/studies`, { bearer: candidate });
 }
 
+/** Log in with a name and password: {token, name, role, expires_at} (the token lasts 12 hours). */
+export const login = (name, password) => request("POST", `${API}/login`, { body: { name, password }, bearer: null });
+export const whoami = () => request("GET", `${API}/whoami`);
+export const audit = (limit = 500) => request("GET", `${API}/audit?limit=${enc(limit)}`);
+
+/** The whole audit log as {filename, blob}. */
+export async function auditCsv() {
+  const response = await request("GET", `${API}/audit.csv`, { raw: true });
+  return { filename: "audit.csv", blob: await response.blob() };
+}
+
 export const listStudies = () => request("GET", `${API}/studies`);
 export const getStudy = (id) => request("GET", `${API}/studies/${enc(id)}`);
 export const createStudy = (spec) => request("POST", `${API}/studies`, { body: spec });

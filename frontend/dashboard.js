@@ -96,6 +96,7 @@ async function route() {
   const parts = location.hash.replace(/^#\/?/, "").split("/").filter(Boolean).map(decodeURIComponent);
   try {
     if (parts[0] === "new") return await newStudyView();
+    if (parts[0] === "audit") return await auditView();
     if (parts[0] === "study" && parts[2] === "p") return await participantView(parts[1], Number(parts[3]));
     if (parts[0] === "study" && parts[2] === "edit") return await editStudyView(parts[1]);
     if (parts[0] === "study") return await studyView(parts[1]);
@@ -121,10 +122,33 @@ route();
 
 function loginView(message = null) {
   setCrumbs();
-  const input = h("input", { type: "password", id: "token", name: "token", autocomplete: "current-password",
-    required: true, placeholder: "experimenter token" });
   const status = h("div", { id: "login-message" }, message ? errorBox(message) : null);
-  const form = h("form", { class: "card login", onsubmit: async (event) => {
+  const name = h("input", { type: "text", id: "login-name", name: "username", autocomplete: "username", required: true });
+  const password = h("input", { type: "password", id: "login-password", name: "password",
+    autocomplete: "current-password", required: true });
+  const personal = h("form", { class: "card login", id: "password-login", onsubmit: async (event) => {
+    event.preventDefault();
+    status.replaceChildren(h("p", { class: "muted" }, "Checking…"));
+    try {
+      const session = await api.login(name.value.trim(), password.value);
+      api.setToken(session.token);
+      toast(`Logged in as ${session.name} (${session.role}) until ${when(session.expires_at)}`);
+      route();
+    } catch (error) {
+      status.replaceChildren(errorBox(error instanceof api.ApiError && error.status === 401
+        ? "Login failed: wrong name or password." : `Login failed: ${error.detail ?? error}`));
+    }
+  } },
+  h("h1", {}, "Experimenter login"),
+  h("p", { class: "muted" }, "Log in with the name and password the study's owner gave you. The session lasts 12 hours "
+    + "and is kept in this tab only."),
+  h("label", { for: "login-name" }, "Name"), name,
+  h("label", { for: "login-password" }, "Password"), password,
+  h("button", { type: "submit", class: "primary" }, "Log in"),
+  status);
+  const input = h("input", { type: "password", id: "token", name: "token", autocomplete: "off",
+    required: true, placeholder: "experimenter token" });
+  const byToken = h("form", { class: "card login", id: "token-login", onsubmit: async (event) => {
     event.preventDefault();
     status.replaceChildren(h("p", { class: "muted" }, "Checking…"));
     try {
@@ -134,19 +158,53 @@ function loginView(message = null) {
     } catch (error) {
       const text = error instanceof api.ApiError && error.status === 401
         ? `Login failed: the server refused this token (${error.detail}). The dashboard needs the experimenter token `
-          + "the server was started with; participant links and tokens do not give access."
+          + "the server was started with, or a personal API token; participant links and tokens do not give access."
         : `Login failed: ${error.detail ?? error}`;
       status.replaceChildren(errorBox(text));
     }
   } },
-  h("h1", {}, "Experimenter login"),
-  h("p", { class: "muted" }, "Enter the experimenter token (TABLETEACH_EXPERIMENTER_TOKEN, or the one `tableteach serve --dev` printed). "
-    + "It is kept in this tab only."),
+  h("h2", {}, "Or with a token"),
+  h("p", { class: "muted" }, "The server's experimenter key (TABLETEACH_EXPERIMENTER_TOKEN, or the one "
+    + "`tableteach serve --dev` printed), or a personal API token. It is kept in this tab only."),
   h("label", { for: "token" }, "Token"), input,
-  h("button", { type: "submit", class: "primary" }, "Log in"),
-  status);
-  app.replaceChildren(form);
-  input.focus();
+  h("button", { type: "submit" }, "Log in with the token"));
+  app.replaceChildren(personal, byToken);
+  name.focus();
+}
+
+// ---------------------------------------------------------------- audit log
+
+async function auditView() {
+  setCrumbs({ text: "Studies", href: "#/" }, { text: "Audit log" });
+  const entries = await api.audit();
+  const saveCsv = async () => {
+    try {
+      const { filename, blob } = await api.auditCsv();
+      const url = URL.createObjectURL(blob);
+      const a = h("a", { href: url, download: filename, hidden: true });
+      document.body.append(a);
+      a.click();
+      a.remove();
+      setTimeout(() => URL.revokeObjectURL(url), 10_000);
+    } catch (error) {
+      toast(`Download failed: ${error.detail ?? error}`, "error");
+    }
+  };
+  const rows = entries.map((e) => h("tr", {},
+    h("td", {}, when(e.at)), h("td", {}, e.actor), h("td", {}, e.role),
+    h("td", {}, h("code", {}, `${e.method} ${e.path}`)),
+    h("td", {}, e.status < 400 ? pill(`done ${e.status}`, "good") : pill(`refused ${e.status}`, "bad")),
+    h("td", {}, e.client)));
+  app.replaceChildren(
+    h("div", { class: "page-head" }, h("h1", {}, "Audit log"),
+      h("button", { id: "audit-csv", onclick: saveCsv }, "Download audit.csv")),
+    h("p", { class: "muted" }, "Every change an experimenter made or tried: who, what, when and from which address "
+      + "(newest first; the last 500 here, all of them in the download)."),
+    entries.length
+      ? h("div", { class: "table-scroll" }, h("table", { class: "data", id: "audit" },
+        h("thead", {}, h("tr", {}, ["When", "Who", "Role", "What", "Result", "From"].map((c) => h("th", {}, c)))),
+        h("tbody", {}, rows)))
+      : h("p", { class: "card muted" }, "No changes yet."));
 }
 
 // ---------------------------------------------------------------- studies
@@ -163,7 +221,8 @@ async function studiesView() {
     h("td", {}, when(s.created_at))));
   app.replaceChildren(
     h("div", { class: "page-head" }, h("h1", {}, "Studies"),
-      h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study")),
+      h("div", { class: "row" }, h("a", { class: "button", href: "#/audit", id: "audit-link" }, "Audit log"),
+        h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study"))),
     studies.length
       ? h("table", { class: "data", id: "studies" },
         h("thead", {}, h("tr", {}, ["Name", "Id", "Status", "Tasks", "Conditions", "Created"].map((c) => h("th", {}, c)))),

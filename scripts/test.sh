@@ -2,12 +2,13 @@
 # Quickstart 2: set up (Python packages, Debian's Chromium, PostgreSQL and nginx) and run the whole test suite.
 source "$(dirname "${BASH_SOURCE[0]}")/_env.sh"
 
-# Debian packages the tests use: Chromium for the browser tests, PostgreSQL for the database tests, nginx for
-# the reverse-proxy test of the multi-process deployment.
+# Debian packages the tests use: Chromium for the browser tests, PostgreSQL for the database tests (its client
+# programs pg_dump/pg_restore for the backup tests), nginx and openssl for the reverse-proxy and HTTPS tests.
 missing=()
 [ -x /usr/bin/chromium ] || missing+=(chromium)
 compgen -G "/usr/lib/postgresql/*/bin/initdb" >/dev/null || missing+=(postgresql)
 [ -x /usr/sbin/nginx ] || missing+=(nginx-light)
+command -v openssl >/dev/null || missing+=(openssl)  # the HTTPS proxy test makes a self-signed certificate
 if [ ${#missing[@]} -gt 0 ]; then
   echo "==> installing Debian packages: ${missing[*]}"
   sudo=""

@@ -12,7 +12,8 @@ from fastapi import APIRouter, FastAPI
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
-from . import analysis, dashboard, events, motion, viewer
+from . import accounts, analysis, dashboard, events, motion, viewer
+from .audit import AuditWrites
 from .auth import experimenter_checker
 from .deps import require_experimenter
 from .events import Feeds
@@ -30,10 +31,10 @@ experimenters with the server's experimenter token. Every participant action acc
 
 def _common_errors(router: APIRouter) -> dict[int | str, dict[str, Any]]:
     """Answers any route of the router can give: 413 (body too large), 503 (database busy or gone) and, behind
-    the experimenter key, 429 (too many wrong keys)."""
+    the experimenter key, 403 (a role that may not) and 429 (too many wrong keys)."""
     codes = [413, 503]
     if any(getattr(dep, "dependency", None) is require_experimenter for dep in router.dependencies):
-        codes.append(429)
+        codes += [403, 429]
     return error_responses(*codes)
 
 
@@ -62,7 +63,9 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.viewer_slots = StreamSlots(settings.streams_per_participant, settings.max_viewer_sockets)
     errors.install(app)
     app.add_middleware(BodyLimit)
-    for module in (participants, studies, exports, analysis, dashboard, motion, viewer, events, pages):
+    app.add_middleware(AuditWrites)
+    for module in (participants, studies, exports, analysis, accounts, dashboard, motion, viewer, events, pages):
         app.include_router(module.router, responses=_common_errors(module.router))
     app.include_router(studies.formulas, responses=_common_errors(studies.formulas))
+    app.include_router(accounts.public, responses=_common_errors(accounts.public))
     return app

@@ -1,4 +1,5 @@
-"""Server subcommands of `tableteach`: serve, teach (scripted teacher over HTTP), export, key, hash-token."""
+"""Server subcommands of `tableteach`: serve, migrate, backup, restore, teach (a scripted teacher over HTTP), export,
+key, hash-token."""
 
 from __future__ import annotations
 
@@ -17,27 +18,30 @@ def _settings(args: argparse.Namespace) -> Settings:
             overrides[name] = value
     if getattr(args, "dev", False) or getattr(args, "demo", False):
         overrides["dev_mode"] = True
-    settings = Settings(**overrides)
-    if getattr(args, "demo", False) and "robot" not in settings.model_fields_set:
-        # The demo is there to be looked at: show the arm unless a robot was chosen explicitly.
-        settings = settings.model_copy(update={"robot": "mujoco"})
-    return settings
+    return Settings(**overrides)
 
 
 def cmd_serve(args: argparse.Namespace) -> None:
-    """Migrate the database, optionally seed the demo study, and serve until interrupted."""
+    """Check (or with --migrate, migrate) the database, optionally seed the demo study, and serve until interrupted."""
     import uvicorn
 
     from .. import services
-    from ..db.migrate import upgrade_head
+    from ..db.migrate import schema_problem, upgrade_head
     from .app import create_app
+    from .auth import experimenter_checker
     from .limits import LimitedHttpToolsProtocol, raise_open_files_limit
     from .dev_token import dev_token_path
 
     settings = _settings(args)
     open_files, _hard = raise_open_files_limit()  # every held connection and event stream is a file descriptor
-    app = create_app(settings)  # refuses a missing or weak experimenter secret before touching the database
-    upgrade_head(settings.database_url)
+    experimenter_checker(settings)  # refuses a missing or weak experimenter secret before touching the database
+    if args.migrate or args.demo:
+        upgrade_head(settings.database_url)
+    else:
+        problem = schema_problem(settings.database_url, _safe_url(settings.database_url))
+        if problem is not None:
+            raise ValueError(problem)  # one line on stderr, exit 2
+    app = create_app(settings)
     base = settings.public_url or f"http://{settings.host}:{settings.port}"
     lines = [f"TableTeach serving on http://{settings.host}:{settings.port} "
              f"(database {_safe_url(settings.database_url)}, "
@@ -60,6 +64,42 @@ def cmd_serve(args: argparse.Namespace) -> None:
                 timeout_graceful_shutdown=5, http=protocol,
                 # Behind the proxy the client's address (for the wrong-key limit) comes from X-Forwarded-For.
                 proxy_headers=True, forwarded_allow_ips=settings.forwarded_allow_ips)
+
+
+def cmd_migrate(args: argparse.Namespace) -> dict:
+    """Bring the database to the newest schema revision; which revision it was at and is at now."""
+    from ..db.migrate import current_revision, upgrade_head
+
+    settings = _settings(args)
+    before = current_revision(settings.database_url)
+    upgrade_head(settings.database_url)
+    return {"database": _safe_url(settings.database_url), "from_revision": before,
+            "to_revision": current_revision(settings.database_url)}
+
+
+def cmd_backup(args: argparse.Namespace) -> dict:
+    """Back up the database and the data folder (recordings) into one archive, also while the server runs."""
+    from ..db.backup import create_backup
+
+    settings = _settings(args)
+    manifest = create_backup(settings.database_url, settings.data_dir, args.out)
+    return {"out": str(args.out), "database": _safe_url(settings.database_url), "data_dir": str(settings.data_dir),
+            "schema_revision": manifest["schema_revision"], "files": len(manifest["files"]),
+            "bytes": sum(f["size"] for f in manifest["files"])}
+
+
+def cmd_restore(args: argparse.Namespace) -> dict:
+    """Restore a backup into an empty database and data folder (stop the server first)."""
+    from ..db.backup import restore_backup
+    from ..db.migrate import head_revision
+
+    settings = _settings(args)
+    manifest = restore_backup(args.archive, settings.database_url, settings.data_dir, force=args.force)
+    behind = manifest["schema_revision"] != head_revision()
+    return {"restored": str(args.archive), "database": _safe_url(settings.database_url),
+            "data_dir": str(settings.data_dir), "schema_revision": manifest["schema_revision"],
+            "created_at": manifest["created_at"], "files": len(manifest["files"]),
+            "next": "tableteach migrate, then tableteach serve" if behind else "tableteach serve"}
 
 
 def _safe_url(url: str) -> str:
@@ -137,13 +177,36 @@ def register(sub: argparse._SubParsersAction) -> None:
     serve.add_argument("--port", type=int, help="port (default 8000; TABLETEACH_PORT)")
     serve.add_argument("--database-url", help="SQLAlchemy URL (default sqlite:///var/tableteach.db)")
     serve.add_argument("--demo", action="store_true",
-                       help="seed the demo study (implies --dev; the MuJoCo robot unless --robot or TABLETEACH_ROBOT)")
+                       help="seed the demo study (implies --dev)")
     serve.add_argument("--robot", choices=["trace", "mujoco"],
-                       help="robot: trace (no physics) or mujoco (simulated arm shown in the page); TABLETEACH_ROBOT")
+                       help="robot: mujoco (default: the simulated arm shown in the page) or trace "
+                            "(no physics, for tests and load runs); TABLETEACH_ROBOT")
     serve.add_argument("--data-dir", help="folder for robot recordings (default var/data; TABLETEACH_DATA_DIR)")
     serve.add_argument("--dev", action="store_true", help="dev mode: a generated experimenter token if none is set")
+    serve.add_argument("--migrate", action="store_true",
+                       help="migrate the database to the newest schema first (without it, serve refuses a database "
+                            "that is not migrated; --demo implies it)")
     serve.add_argument("--log-level", default="warning", choices=["critical", "error", "warning", "info", "debug"])
     serve.set_defaults(run=cmd_serve)
+
+    migrate = sub.add_parser("migrate", help="migrate the database to the newest schema (back it up first)")
+    migrate.add_argument("--database-url", help="SQLAlchemy URL (default: TABLETEACH_DATABASE_URL)")
+    migrate.set_defaults(run=cmd_migrate)
+
+    backup = sub.add_parser("backup", help="back up the database and the recordings into one .tar.gz "
+                                           "(safe while the server runs)")
+    backup.add_argument("--out", required=True, help="archive to write, e.g. backups/tableteach-2026-12-01.tar.gz")
+    backup.add_argument("--database-url", help="SQLAlchemy URL (default: TABLETEACH_DATABASE_URL)")
+    backup.add_argument("--data-dir", help="folder of the recordings (default: TABLETEACH_DATA_DIR)")
+    backup.set_defaults(run=cmd_backup)
+
+    restore = sub.add_parser("restore", help="restore a backup into an empty database and data folder")
+    restore.add_argument("archive", help="a file made by `tableteach backup`")
+    restore.add_argument("--database-url", help="SQLAlchemy URL to restore into (default: TABLETEACH_DATABASE_URL)")
+    restore.add_argument("--data-dir", help="folder to restore the recordings into (default: TABLETEACH_DATA_DIR)")
+    restore.add_argument("--force", action="store_true",
+                         help="replace a database that has tables and files that exist (default: refuse)")
+    restore.set_defaults(run=cmd_restore)
 
     teach = sub.add_parser("teach", help="a scripted teacher completes a participant session over HTTP")
     teach.add_argument("--server", required=True, help="server base URL, e.g. http://127.0.0.1:8000")

@@ -8,8 +8,8 @@ from fastapi import Depends, Header, Path, Request
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from starlette.concurrency import run_in_threadpool
 
-from ..errors import NotAuthenticated, TryLater
-from ..services import Context
+from ..errors import Forbidden, NotAuthenticated, TryLater
+from ..services import Context, accounts
 from .auth import SecretChecker
 from .limits import AddressLimiter
 
@@ -38,7 +38,8 @@ async def require_experimenter(
     request: Request,
     credentials: Annotated[HTTPAuthorizationCredentials | None, Depends(_experimenter_bearer)],
 ) -> None:
-    """Refuse the request unless it carries the experimenter key; too many wrong keys from one address get 429."""
+    """Refuse the request unless it carries the server's experimenter key (the bootstrap owner) or a person's valid
+    API token whose role allows it (403 otherwise); too many wrong keys from one address get 429."""
     checker: SecretChecker = request.app.state.experimenter
     limiter: AddressLimiter = request.app.state.key_failures
     if credentials is None or not credentials.credentials:
@@ -48,6 +49,11 @@ async def require_experimenter(
     # the experimenter out with one wrong key now and then. Only wrong keys are counted and limited.
     known = checker.quick_check(secret)
     if known:
+        _authorize(request, accounts.BOOTSTRAP)
+        return
+    person = await run_in_threadpool(accounts.actor_of_token, request.app.state.context, secret)
+    if person is not None:
+        _authorize(request, person)
         return
     client = request.client.host if request.client else "unknown"
     wait = limiter.retry_after(client)
@@ -57,7 +63,16 @@ async def require_experimenter(
     ok = known if known is not None else await run_in_threadpool(checker.check, secret)  # legacy PBKDF2: slow
     if not ok:
         limiter.record(client)
-        raise NotAuthenticated("wrong experimenter token")
+        raise NotAuthenticated("wrong, expired or revoked experimenter token")
+    _authorize(request, accounts.BOOTSTRAP)
+
+
+def _authorize(request: Request, actor: accounts.Actor) -> None:
+    """Note who acts (the audit log reads it, refused writes included) and refuse what their role may not do."""
+    request.state.experimenter = actor
+    if not accounts.allowed(actor.role, request.method, request.url.path):
+        raise Forbidden(f"{actor.name} has the role {actor.role}, which may not {request.method} {request.url.path} "
+                        "(analyst: read and export only; experimenter: studies and participants; owner: everything)")
 
 
 async def join_allowed(request: Request) -> None:

@@ -10,13 +10,14 @@ from fastapi.responses import JSONResponse, Response
 from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..core.session import ProtocolError
-from ..errors import (Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, StudyFull, TableTeachError,
+from ..errors import (Conflict, Forbidden, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, StudyFull,
+                      TableTeachError,
                       TryLater)
 from .pages import error_page, is_page
 
 log = logging.getLogger(__name__)
 
-STATUS = {NotFound: 404, Conflict: 409, InvalidInput: 422, NotAuthenticated: 401}
+STATUS = {NotFound: 404, Conflict: 409, InvalidInput: 422, NotAuthenticated: 401, Forbidden: 403}
 
 
 def _answer(status: int, detail: str, state: object = None, headers: dict[str, str] | None = None,

@@ -246,6 +246,7 @@ class FormulaOut(BaseModel):
 ERROR_MEANINGS = {
     400: "the body could not be parsed",
     401: "missing or wrong token",
+    403: "the token's role may not do this (analyst: read and export only; experimenter: not the accounts)",
     404: "no such study, participant or export",
     409: "out of order, stale step, reused Idempotency-Key, study not open or full; includes the current state",
     413: "request body over 1 MiB",

@@ -17,6 +17,7 @@ from tests.web.conftest import ServerProcess, open_study, study_spec
 
 pytestmark = pytest.mark.browser
 WAIT_MS = 120_000
+PLACED = "name => document.querySelector('.placed')?.textContent.includes(name)"  # a function: the page's CSP
 
 
 class RestartableServer(ServerProcess):
@@ -78,11 +79,10 @@ def test_the_page_recovers_from_a_kill_and_its_view_agrees_with_its_panel(browse
         empty = _settled_view(page)
 
         page.locator('button.object[data-object="dinner_plate"]').click()
-        page.wait_for_function("document.querySelector('.placed')?.textContent.includes('dinner plate')",
-                               timeout=WAIT_MS)
+        page.wait_for_function(PLACED, arg="dinner plate", timeout=WAIT_MS)
         page.wait_for_selector("#finish:not([disabled])", timeout=WAIT_MS)  # the robot has placed it
         page.locator('button.object[data-object="bowl"]').click()  # acknowledged, then the crash at once
-        page.wait_for_function("document.querySelector('.placed')?.textContent.includes('bowl')", timeout=WAIT_MS)
+        page.wait_for_function(PLACED, arg="bowl", timeout=WAIT_MS)
         server.kill()
         server.start()
 

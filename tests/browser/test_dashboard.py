@@ -40,7 +40,7 @@ def log_in(page: Any, url: str, token: str) -> None:
     """Open the dashboard and submit a token."""
     page.goto(f"{url}/dashboard")
     page.fill("#token", token)
-    page.click("form.login button[type=submit]")
+    page.click("#token-login button[type=submit]")
 
 
 @pytest.mark.browser
@@ -65,7 +65,7 @@ def test_experimenter_follows_a_session_in_the_dashboard(server_factory: Any, br
 
     # The experimenter logs in and sees the participant in the live table.
     page.fill("#token", EXPERIMENTER_TOKEN)
-    page.click("form.login button[type=submit]")
+    page.click("#token-login button[type=submit]")
     page.click("#studies a:has-text('Browser study')")
     row = page.locator(f"#participants tr[data-participant='{pid}']")
     row.wait_for()

@@ -165,7 +165,7 @@ def test_a_participant_completes_an_active_session_by_clicking_in_the_3d_view(br
     page.set_viewport_size({"width": 1280, "height": 800})  # the dashboard's layout size (no WebGL here)
     page.goto(f"{server.url}/dashboard")
     page.fill("#token", EXPERIMENTER_TOKEN)
-    page.click("form.login button[type=submit]")
+    page.click("#token-login button[type=submit]")
     page.click("#studies a:has-text('test active')")
     row = page.locator(f"#participants tr[data-participant='{pid}']")
     row.wait_for()

@@ -43,7 +43,7 @@ def make_study(url: str, **extra: Any) -> str:
 @pytest.fixture
 def live_server(tmp_path: Path) -> Any:
     """The app with the trace robot, served in a thread."""
-    server = LiveServer(tmp_path).start()
+    server = LiveServer(tmp_path, robot="trace").start()
     try:
         yield server
     finally:
@@ -136,7 +136,7 @@ def screenshots(out_dir: Path) -> None:
 
     out_dir.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
-        server = LiveServer(Path(tmp)).start()
+        server = LiveServer(Path(tmp), robot="trace").start()
         try:
             study = make_study(server.url, quiz=[], name="Dinner table, counterbalanced",
                                tasks=[{"key": "task1"}, {"key": "task2"}], task_order="balanced",

@@ -55,12 +55,13 @@ class ServerProcess:
     def start(self) -> "ServerProcess":
         """Start and wait until /healthz answers."""
         self.port = free_port()
-        env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": EXPERIMENTER_TOKEN,
+        # The trace robot unless a test asks for MuJoCo (TABLETEACH_ROBOT=mujoco): these tests are about the server.
+        env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": EXPERIMENTER_TOKEN, "TABLETEACH_ROBOT": "trace",
                "TABLETEACH_DATA_DIR": str(self.db_path.parent / "data"), **JOINS_UNLIMITED, **self.env}
         env.pop("TABLETEACH_DEV_MODE", None)
         log = open(self.db_path.with_suffix(f".{self.port}.log"), "wb")
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "tableteach.cli", "serve", "--port", str(self.port),
+            [sys.executable, "-m", "tableteach.cli", "serve", "--migrate", "--port", str(self.port),
              "--database-url", self.database_url],
             env=env, stdout=log, stderr=subprocess.STDOUT,
         )
@@ -149,7 +150,7 @@ def in_process_app(tmp_path: Path, robot: Any = None) -> Iterator[Any]:
     from tableteach.web.app import create_app
 
     settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN,
-                        data_dir=tmp_path / "data", joins_per_address=100_000)
+                        robot="trace", data_dir=tmp_path / "data", joins_per_address=100_000)
     upgrade_head(settings.database_url)
     context = None if robot is None else Context.from_settings(settings, robot)
     app = create_app(settings, context=context)

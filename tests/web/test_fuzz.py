@@ -23,7 +23,7 @@ def _app():  # type: ignore[no-untyped-def]
     folder = tempfile.mkdtemp(prefix="tableteach-fuzz-")
     url = f"sqlite:///{folder}/fuzz.db"
     upgrade_head(url)
-    app = create_app(Settings(database_url=url, experimenter_token=EXPERIMENTER_TOKEN))
+    app = create_app(Settings(database_url=url, experimenter_token=EXPERIMENTER_TOKEN, robot="trace"))
     return app
 
 

@@ -249,7 +249,8 @@ def test_docs_pages_that_load_a_cdn_are_off_outside_dev_mode(app_client, tmp_pat
 
     assert app_client.get("/docs").status_code == 404 and app_client.get("/redoc").status_code == 404
     assert app_client.get("/openapi.json").status_code == 200
-    dev = create_app(Settings(database_url=f"sqlite:///{tmp_path / 'dev.db'}", dev_mode=True, data_dir=tmp_path))
+    dev = create_app(Settings(database_url=f"sqlite:///{tmp_path / 'dev.db'}", dev_mode=True, robot="trace",
+                              data_dir=tmp_path))
     with TestClient(dev) as client:
         assert client.get("/docs").status_code == 200
 
@@ -280,7 +281,7 @@ def _app(tmp_path: Path, name: str, data_dir: Path, robot: Any = None) -> Any:
     from .conftest import EXPERIMENTER_TOKEN
 
     settings = Settings(database_url=f"sqlite:///{tmp_path / name}", experimenter_token=EXPERIMENTER_TOKEN,
-                        data_dir=data_dir)
+                        robot="trace", data_dir=data_dir)
     upgrade_head(settings.database_url)
     app = create_app(settings, context=Context.from_settings(settings, robot))
     client = TestClient(app)
@@ -443,7 +444,7 @@ def _busy_app(tmp_path: Path) -> Any:
     from .conftest import EXPERIMENTER_TOKEN
 
     settings = Settings(database_url=f"sqlite:///{tmp_path / 'busy.db'}", experimenter_token=EXPERIMENTER_TOKEN,
-                        data_dir=tmp_path / "data", database_busy_seconds=0.3)
+                        robot="trace", data_dir=tmp_path / "data", database_busy_seconds=0.3)
     upgrade_head(settings.database_url)
     client = TestClient(create_app(settings))
     client.ctx = client.app.state.context

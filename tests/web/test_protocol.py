@@ -61,7 +61,7 @@ def test_assessment_waits_for_the_robot_to_finish(tmp_path) -> None:
     from starlette.testclient import TestClient
 
     settings = Settings(database_url=f"sqlite:///{tmp_path / 'slow.db'}", experimenter_token=EXPERIMENTER_TOKEN,
-                        robot_seconds_per_object=0.05)
+                        robot="trace", robot_seconds_per_object=0.05)
     upgrade_head(settings.database_url)
     with TestClient(create_app(settings)) as client:
         token, _ = to_teaching(client, make_study(client, n_practice=0))
