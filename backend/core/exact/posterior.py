@@ -68,7 +68,7 @@ class ExactPosterior:
         masses = self._masses(None)
         log_z = self._log_sum(masses, log_f)
         bound = self._eps_bound(len(pos), len(neg), length)
-        self.exact_terms = not pos or bound > DROP_TOLERANCE * math.exp(min(log_z, 700.0))
+        self.exact_terms = not pos or bound > 0.0 and math.log(bound) > math.log(DROP_TOLERANCE) + log_z
         if self.exact_terms and pos:
             self._fixed, self._bits = 0, list(range(len(self.data)))
             log_f = self._log_likelihood(length)
@@ -145,12 +145,15 @@ class ExactPosterior:
             return 0.0
         p0 = prior_mass_by_count(self.prior, [self.prior.vocabulary.everything()])[0]
         n = np.arange(length, dtype=float)
-        total = 0.0
+        terms = []
+        with np.errstate(divide="ignore"):
+            log_p0 = np.log(np.clip(p0, 0.0, None))
         for j in range(1, k + 1):
-            with np.errstate(over="ignore"):
-                inner = float((p0 * np.exp2(n * (k - j))).sum())
-            total += math.comb(k, j) * math.exp(j * self.log_epsilon) * inner * 2.0**q
-        return total
+            inner = log_p0 + n * (k - j) * LN2
+            top = inner.max()
+            log_inner = top + math.log(float(np.exp(inner - top).sum()))
+            terms.append(math.log(math.comb(k, j)) + j * self.log_epsilon + log_inner + q * LN2)
+        return float(math.exp(min(max(terms), 700.0)) * len(terms))
 
     # ------------------------------------------------------------ queries of the posterior
 
@@ -164,7 +167,8 @@ class ExactPosterior:
         flat = terms.reshape(terms.shape[0], -1)
         top = flat.max(axis=1)
         safe = np.where(np.isfinite(top), top, 0.0)
-        log_num = safe + np.log(np.exp(flat - safe[:, None]).sum(axis=1))
+        with np.errstate(divide="ignore"):
+            log_num = safe + np.log(np.exp(flat - safe[:, None]).sum(axis=1))
         out = np.exp(log_num - self.log_evidence)
         return np.clip(np.where(np.isfinite(top), out, 0.0), 0.0, 1.0)
 
