@@ -151,13 +151,14 @@ def _mass(prior: ChainPrior, cons: list[Constraint]) -> np.ndarray:
                 shift = b * (b - 1) // 2
                 weight = p * (1 - p) ** (b - 1)
                 deg_rest = (s - b) * (s - b - 1) // 2 + 2 * (s - b) + 1
-                rest = seq[:, R, :deg_rest]
-                acc = np.zeros((M, R.size, deg_rest + 2 * b))
-                blk = block[:, B, :2 * b + 1] * weight
+                n_sets = R.size // per
+                rest = seq[:, R, :deg_rest].reshape(M, n_sets, per, deg_rest)
+                blk = block[:, B, :2 * b + 1].reshape(M, n_sets, per, 2 * b + 1) * weight
+                outer = np.matmul(blk.transpose(0, 1, 3, 2), rest)  # (M, sets, 2b+1, deg_rest), summed over B
+                target = seq[:, S[::per], :]
                 for d in range(2 * b + 1):
-                    acc[:, :, d:d + deg_rest] += blk[:, :, d:d + 1] * rest
-                summed = acc.reshape(M, -1, per, acc.shape[-1]).sum(axis=2)
-                seq[:, S[::per], shift:shift + acc.shape[-1]] += summed
+                    target[:, :, shift + d:shift + d + deg_rest] += outer[:, :, d, :]
+                seq[:, S[::per], :] = target
         total = seq[:, full, :] / (p * math.factorial(n))
     return _times_extra(prior, cons, total)
 
