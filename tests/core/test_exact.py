@@ -9,7 +9,7 @@ import pytest
 from tableteach.core.belief import Belief
 from tableteach.core.domain import Domain, get_domain
 from tableteach.core.executions import execution_graph
-from tableteach.core.hypotheses import get_space
+from tableteach.core.hypotheses import build_space, get_space
 from tableteach.core.puns import node_acceptance
 from tableteach.core.exact.chains import ChainPrior, prior_mass_by_count
 from tableteach.core.exact.constraints import Vocabulary
@@ -159,3 +159,28 @@ def test_total_mass_is_one_at_ten_objects():
     prior = ChainPrior(Vocabulary(names, names))
     assert prior_mass_by_count(prior, [prior.vocabulary.everything()])[0].sum() == pytest.approx(1.0, abs=1e-12)
 
+
+
+# ------------------------------------------------------------ search against exhaustive scoring
+
+FOUR = ("a", "b", "c", "d")
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_search_finds_the_exhaustive_optimum(seed):
+    from tableteach.core.exact.search import best_execution
+
+    rng = np.random.default_rng(seed)
+    domain = Domain("four", FOUR, FOUR, FOUR, True, 1.0, "place")
+    space = build_space(domain, "chains-2020-sat")
+    data = _random_data(domain, rng, 3)
+    belief = Belief.prior(space)
+    for trace, ok in data:
+        belief = belief.observe(trace, ok)
+    acceptance = node_acceptance(belief)
+    post = posterior_after(domain, "chains-2020-sat", data)
+    plan = best_execution(post, FOUR, "min-regret")
+    query = best_execution(post, FOUR, "active")
+    assert plan.proven and query.proven
+    assert plan.p_acceptable == pytest.approx(acceptance.max(), abs=1e-9)
+    assert abs(2 * query.p_acceptable - 1) == pytest.approx(np.abs(2 * acceptance - 1).min(), abs=1e-9)
