@@ -17,11 +17,15 @@ import heapq
 from dataclasses import dataclass
 from typing import Sequence
 
+import numpy as np
+
 from .constraints import Constraint, Vocabulary
 from .posterior import ExactPosterior
 
 TOLERANCE = 1e-12
 OBJECTIVES = ("min-regret", "active")
+# The active query's bounds rarely prune (most prefixes can still end either way), so it gets a budget.
+DEFAULT_EXPANSIONS = {"min-regret": 2_000, "active": 24}
 
 
 @dataclass(frozen=True)
@@ -60,12 +64,14 @@ def best_execution(
     posterior: ExactPosterior,
     propositions: Sequence[str],
     objective: str = "min-regret",
-    max_expansions: int = 2_000,
+    max_expansions: int | None = None,
     batch_size: int = 8,
 ) -> SearchResult:
     """The execution (propositions in order of first occurrence) that is best for the objective."""
     if objective not in OBJECTIVES:
         raise ValueError(f"unknown search objective {objective!r}; expected one of {', '.join(OBJECTIVES)}")
+    if max_expansions is None:
+        max_expansions = DEFAULT_EXPANSIONS[objective]
     voc = posterior.prior.vocabulary
     root_p = posterior.p_acceptable(voc.of_events(()))
     best = ((), root_p, _score(objective, root_p))
@@ -85,8 +91,11 @@ def best_execution(
             continue
         cons = []
         for child in children:
-            cons += [voc.of_events(child), lower_constraint(voc, child), upper_constraint(voc, child)]
-        probs = posterior.p_within(cons).reshape(len(children), 3)
+            lower = [lower_constraint(voc, child)] if objective == "active" else []
+            cons += [voc.of_events(child), *lower, upper_constraint(voc, child)]
+        probs = posterior.p_within(cons).reshape(len(children), -1)
+        if objective == "min-regret":  # the lower bound does not prune a maximisation
+            probs = np.concatenate([probs[:, :1], probs[:, 1:], probs[:, 1:]], axis=1)
         for child, (p, lo, hi) in zip(children, probs, strict=True):
             score = _score(objective, float(p))
             if score < best[2] - TOLERANCE:
