@@ -145,20 +145,34 @@ def _mass(prior: ChainPrior, cons: list[Constraint]) -> np.ndarray:
     else:
         seq = np.zeros((M, 1 << n, L))
         seq[:, 0, 0] = 1.0
+        used = (block != 0).any(axis=(0, 2))  # blocks with a valid order under some constraint of the batch
         for s in range(1, n + 1):
             for b in range(1, s + 1):
                 S, B, R, per = _pairs(n, s, b)
                 shift = b * (b - 1) // 2
                 weight = p * (1 - p) ** (b - 1)
                 deg_rest = (s - b) * (s - b - 1) // 2 + 2 * (s - b) + 1
-                n_sets = R.size // per
-                rest = seq[:, R, :deg_rest].reshape(M, n_sets, per, deg_rest)
-                blk = block[:, B, :2 * b + 1].reshape(M, n_sets, per, 2 * b + 1) * weight
-                outer = np.matmul(blk.transpose(0, 1, 3, 2), rest)  # (M, sets, 2b+1, deg_rest), summed over B
-                target = seq[:, S[::per], :]
-                for d in range(2 * b + 1):
-                    target[:, :, shift + d:shift + d + deg_rest] += outer[:, :, d, :]
-                seq[:, S[::per], :] = target
+                live = used[B]
+                if live.all():
+                    n_sets = R.size // per
+                    rest = seq[:, R, :deg_rest].reshape(M, n_sets, per, deg_rest)
+                    blk = block[:, B, :2 * b + 1].reshape(M, n_sets, per, 2 * b + 1) * weight
+                    outer = np.matmul(blk.transpose(0, 1, 3, 2), rest)  # (M, sets, 2b+1, deg_rest), summed over B
+                    target = seq[:, S[::per], :]
+                    for d in range(2 * b + 1):
+                        target[:, :, shift + d:shift + d + deg_rest] += outer[:, :, d, :]
+                    seq[:, S[::per], :] = target
+                elif live.any():  # few valid blocks (data constrain them): only those pairs
+                    keep = np.flatnonzero(live)
+                    S_k, B_k, R_k = S[keep], B[keep], R[keep]
+                    rest = seq[:, R_k, :deg_rest]
+                    blk = block[:, B_k, :2 * b + 1] * weight
+                    acc = np.zeros((M, keep.size, deg_rest + 2 * b))
+                    for d in range(2 * b + 1):
+                        acc[:, :, d:d + deg_rest] += blk[:, :, d:d + 1] * rest
+                    starts = np.flatnonzero(np.r_[True, S_k[1:] != S_k[:-1]])
+                    summed = np.add.reduceat(acc, starts, axis=1)
+                    seq[:, S_k[starts], shift:shift + acc.shape[-1]] += summed
         total = seq[:, full, :] / (p * math.factorial(n))
     return _times_extra(prior, cons, total)
 

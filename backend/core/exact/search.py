@@ -79,7 +79,8 @@ def best_execution(
     frontier: list[tuple[float, int, tuple[str, ...]]] = [(_bound(objective, lo, hi), 0, ())]
     expanded = 0
     counter = 0
-    while frontier and expanded < max_expansions:
+    perfect = -1.0 if objective == "min-regret" else 0.0  # nothing scores better than this
+    while frontier and expanded < max_expansions and best[2] > perfect + TOLERANCE:
         batch: list[tuple[str, ...]] = []
         while frontier and len(batch) < batch_size and expanded + len(batch) < max_expansions:
             bound, _, events = heapq.heappop(frontier)
@@ -105,7 +106,7 @@ def best_execution(
             if child_bound < best[2] - TOLERANCE and len(child) < len(propositions):
                 counter += 1
                 heapq.heappush(frontier, (child_bound, counter, child))
-    proven = not any(b < best[2] - TOLERANCE for b, _, _ in frontier)
+    proven = best[2] <= perfect + TOLERANCE or not any(b < best[2] - TOLERANCE for b, _, _ in frontier)
     return SearchResult(best[0], best[1], expanded, proven)
 
 
