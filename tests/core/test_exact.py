@@ -184,3 +184,18 @@ def test_search_finds_the_exhaustive_optimum(seed):
     assert plan.proven and query.proven
     assert plan.p_acceptable == pytest.approx(acceptance.max(), abs=1e-9)
     assert abs(2 * query.p_acceptable - 1) == pytest.approx(np.abs(2 * acceptance - 1).min(), abs=1e-9)
+
+
+@pytest.mark.parametrize(("task", "prior"), CASES)
+def test_entropy_agrees_with_enumeration(task, prior):
+    rng = np.random.default_rng(21)
+    domain = get_domain(task)
+    data = _random_data(domain, rng, 3)
+    belief = Belief.prior(get_space(task, prior))
+    for trace, ok in data:
+        belief = belief.observe(trace, ok)
+    post = posterior_after(domain, prior, data)
+    assert post.entropy() == pytest.approx(belief.entropy, abs=1e-9)
+    space = belief.space
+    blocks = post.block_count_distribution()
+    assert blocks.sum() == pytest.approx(1.0, abs=1e-9)

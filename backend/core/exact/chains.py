@@ -127,65 +127,74 @@ def _block_orders(prior: ChainPrior, cons: Sequence[Constraint]) -> np.ndarray:
 
 def prior_mass_by_count(prior: ChainPrior, cons: Sequence[Constraint], chunk: int = 64) -> np.ndarray:
     """Z[M, N]: prior mass (unnormalised if conditioned) of the formulas within each constraint with N clauses."""
-    out = [_mass(prior, list(cons[i:i + chunk])) for i in range(0, len(cons), chunk)]
+    out = [_mass(prior, list(cons[i:i + chunk]), False)[:, 0] for i in range(0, len(cons), chunk)]
     return np.concatenate(out, axis=0) if out else np.zeros((0, prior.degree + 1))
 
 
-def _mass(prior: ChainPrior, cons: list[Constraint]) -> np.ndarray:
+def prior_mass_by_blocks(prior: ChainPrior, cons: Sequence[Constraint], chunk: int = 32) -> np.ndarray:
+    """Z[M, k, N]: as ``prior_mass_by_count``, split by the number k of chain blocks (singletons included)."""
+    out = [_mass(prior, list(cons[i:i + chunk]), True) for i in range(0, len(cons), chunk)]
+    n = prior.vocabulary.n
+    return np.concatenate(out, axis=0) if out else np.zeros((0, n + 1, prior.degree + 1))
+
+
+def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool) -> np.ndarray:
     voc = prior.vocabulary
     n, M, p = voc.n, len(cons), prior.p_new_block
     L = n * (n - 1) // 2 + 2 * n + 1
+    K, step = (n + 1, 1) if by_blocks else (1, 0)
     block = _block_orders(prior, cons)
     full = (1 << n) - 1
     if p <= 0.0:  # one chain over everything
-        total = np.zeros((M, L))
+        total = np.zeros((M, K, L))
         shift = n * (n - 1) // 2
-        total[:, shift:shift + 2 * n + 1] = block[:, full, :]
+        total[:, step, shift:shift + 2 * n + 1] = block[:, full, :]
         total /= math.factorial(n)
     else:
-        seq = np.zeros((M, 1 << n, L))
-        seq[:, 0, 0] = 1.0
+        seq = np.zeros((M, 1 << n, K, L))
+        seq[:, 0, 0, 0] = 1.0
         used = (block != 0).any(axis=(0, 2))  # blocks with a valid order under some constraint of the batch
         for s in range(1, n + 1):
             for b in range(1, s + 1):
                 S, B, R, per = _pairs(n, s, b)
                 shift = b * (b - 1) // 2
                 weight = p * (1 - p) ** (b - 1)
-                deg_rest = (s - b) * (s - b - 1) // 2 + 2 * (s - b) + 1
+                deg = (s - b) * (s - b - 1) // 2 + 2 * (s - b) + 1
                 live = used[B]
                 if live.all():
                     n_sets = R.size // per
-                    rest = seq[:, R, :deg_rest].reshape(M, n_sets, per, deg_rest)
+                    rest = seq[:, R, :K - step, :deg].reshape(M, n_sets, per, (K - step) * deg)
                     blk = block[:, B, :2 * b + 1].reshape(M, n_sets, per, 2 * b + 1) * weight
-                    outer = np.matmul(blk.transpose(0, 1, 3, 2), rest)  # (M, sets, 2b+1, deg_rest), summed over B
-                    target = seq[:, S[::per], :]
+                    outer = np.matmul(blk.transpose(0, 1, 3, 2), rest)  # summed over the blocks B of each set
+                    outer = outer.reshape(M, n_sets, 2 * b + 1, K - step, deg)
+                    target = seq[:, S[::per]]
                     for d in range(2 * b + 1):
-                        target[:, :, shift + d:shift + d + deg_rest] += outer[:, :, d, :]
-                    seq[:, S[::per], :] = target
+                        target[:, :, step:, shift + d:shift + d + deg] += outer[:, :, d]
+                    seq[:, S[::per]] = target
                 elif live.any():  # few valid blocks (data constrain them): only those pairs
                     keep = np.flatnonzero(live)
                     S_k, B_k, R_k = S[keep], B[keep], R[keep]
-                    rest = seq[:, R_k, :deg_rest]
+                    rest = seq[:, R_k, :K - step, :deg]
                     blk = block[:, B_k, :2 * b + 1] * weight
-                    acc = np.zeros((M, keep.size, deg_rest + 2 * b))
+                    acc = np.zeros((M, keep.size, K - step, deg + 2 * b))
                     for d in range(2 * b + 1):
-                        acc[:, :, d:d + deg_rest] += blk[:, :, d:d + 1] * rest
+                        acc[..., d:d + deg] += blk[:, :, None, d:d + 1] * rest
                     starts = np.flatnonzero(np.r_[True, S_k[1:] != S_k[:-1]])
                     summed = np.add.reduceat(acc, starts, axis=1)
-                    seq[:, S_k[starts], shift:shift + acc.shape[-1]] += summed
-        total = seq[:, full, :] / (p * math.factorial(n))
+                    seq[:, S_k[starts], step:, shift:shift + acc.shape[-1]] += summed
+        total = seq[:, full] / (p * math.factorial(n))
     return _times_extra(prior, cons, total)
 
 
 def _times_extra(prior: ChainPrior, cons: list[Constraint], poly: np.ndarray) -> np.ndarray:
-    """Multiply in the independent G clauses of the forbiddable-only propositions."""
+    """Multiply in the independent G clauses of the forbiddable-only propositions (last axis: N)."""
     m = len(prior.vocabulary.extra)
-    out = np.zeros((poly.shape[0], prior.degree + 1))
-    out[:, :poly.shape[1]] = poly
+    out = np.zeros((*poly.shape[:-1], prior.degree + 1))
+    out[..., :poly.shape[-1]] = poly
     qg = prior.p_forbid
     for j in range(m):
-        ok = np.array([c.g_extra >> j & 1 for c in cons], dtype=float)[:, None]
+        ok = np.array([c.g_extra >> j & 1 for c in cons], dtype=float)[:, None, None]
         shifted = np.zeros_like(out)
-        shifted[:, 1:] = out[:, :-1]
+        shifted[..., 1:] = out[..., :-1]
         out = out * (1 - qg) + shifted * qg * ok
     return out

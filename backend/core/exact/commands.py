@@ -38,13 +38,13 @@ def _clause_text(kind: str, first: str, second: str | None) -> str:
 
 
 def infer(domain: Domain, prior: str, executions: Sequence[LabelledExecution], top: int) -> dict[str, Any]:
-    """The posterior's clause marginals (the support is not listed: it has up to 6e13 formulas)."""
+    """The posterior's entropy and clause marginals (the support is not listed: it has up to 6e13 formulas)."""
     started = time.perf_counter()
     post = _posterior(domain, prior, executions)
     marginals = sorted(post.marginals().items(), key=lambda kv: -kv[1])
     return {
         "support": [],
-        "entropy": None,
+        "entropy": post.entropy(),
         "map": None,
         "n_hypotheses": None,
         "marginals": [{"clause": _clause_text(*key), "p": p} for key, p in marginals[: max(top, 0)]],

@@ -20,7 +20,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .chains import ChainPrior, prior_mass_by_count
+from .chains import ChainPrior, prior_mass_by_blocks, prior_mass_by_count
 from .constraints import Constraint
 
 LN2 = math.log(2.0)
@@ -176,14 +176,54 @@ class ExactPosterior:
         """Posterior probability that an execution satisfying exactly these clauses is acceptable."""
         return float(self.p_within([satisfied])[0])
 
-    def marginals(self) -> dict[tuple[str, str, str | None], float]:
-        """P(clause in the formula) for every template clause, keyed (kind, first, second)."""
+    def marginals(self, kinds: str = "GFU") -> dict[tuple[str, str, str | None], float]:
+        """P(clause in the formula) for every template clause of the given kinds, keyed (kind, first, second)."""
         voc = self.prior.vocabulary
-        keys: list[tuple[str, str, str | None]] = [("G", p, None) for p in voc.forbiddable]
-        keys += [("F", p, None) for p in voc.orderable]
-        keys += [("U", a, b) for a in voc.orderable for b in voc.orderable if a != b]
+        keys: list[tuple[str, str, str | None]] = [("G", p, None) for p in voc.forbiddable if "G" in kinds]
+        keys += [("F", p, None) for p in voc.orderable if "F" in kinds]
+        keys += [("U", a, b) for a in voc.orderable for b in voc.orderable if a != b and "U" in kinds]
         absent = self.p_within([voc.without(*key) for key in keys])
         return {key: float(1.0 - a) for key, a in zip(keys, absent, strict=True)}
+
+    def block_count_distribution(self) -> np.ndarray:
+        """P(the formula's chain structure has k blocks), k = 0..n (singletons count as blocks)."""
+        return self._joint().sum(axis=(0, 2))
+
+    def _joint(self) -> np.ndarray:
+        """Posterior mass over (satisfaction pattern, block count, clause count)."""
+        cons = self._constraints(None)
+        z = prior_mass_by_blocks(self.prior, cons)
+        masses = np.clip(_moebius(z, len(self._bits)), 0.0, None)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return masses * np.exp(self._log_f - self.log_evidence)[:, None, :]
+
+    def entropy(self) -> float:
+        """Shannon entropy (nats) over canonical clause sets: log Z - E[log prior weight] - E[log likelihood].
+
+        The prior weight's log is additive but for log k! (k blocks): a constant, k log(p/(1-p)),
+        log k!, and N_G log(q_G/(1-q_G)) + N_F log(q_F/(1-q_F)); the counts' expectations come
+        from the block-count distribution and the G and F marginals.
+        """
+        prior, voc = self.prior, self.prior.vocabulary
+        joint = self._joint()
+        log_f = np.broadcast_to(self._log_f[:, None, :], joint.shape)
+        e_log_f = float(np.where(joint > 0, joint * np.where(np.isfinite(log_f), log_f, 0.0), 0.0).sum())
+        n = voc.n
+        k = np.arange(n + 1)
+        p_k = joint.sum(axis=(0, 2))
+        p = prior.p_new_block
+        e_log_prior = -math.lgamma(n + 1)
+        if 0.0 < p < 1.0:
+            e_log_prior += -math.log(p) + n * math.log(1 - p) + float(p_k @ (k * math.log(p / (1 - p))))
+            e_log_prior += float(p_k @ np.array([math.lgamma(j + 1) for j in k]))
+        elif p >= 1.0:
+            e_log_prior += math.lgamma(n + 1)  # all singletons: n!/n! whatever the order
+        marg = self.marginals("GF")
+        for kind, q, count in (("G", prior.p_forbid, len(voc.forbiddable)), ("F", prior.p_eventually, n)):
+            expected = sum(v for key, v in marg.items() if key[0] == kind)
+            if count and 0.0 < q < 1.0:
+                e_log_prior += count * math.log(1 - q) + expected * math.log(q / (1 - q))
+        return float(self.log_evidence - e_log_prior - e_log_f)
 
     def observe(self, datum: Datum) -> "ExactPosterior":
         """The posterior after one more labelled execution."""
