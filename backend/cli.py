@@ -67,7 +67,10 @@ def _executions(args: argparse.Namespace) -> list[LabelledExecution]:
 
 def _posterior(args: argparse.Namespace) -> tuple[Belief, float]:
     executions = _executions(args)
-    space = get_space(args.task, args.prior) if args.task else exact_commands.enumerated_space(_domain(args), args.prior)
+    if args.task:
+        space = get_space(args.task, args.prior)
+    else:
+        space = exact_commands.enumerated_space(_domain(args), args.prior)
     started = time.perf_counter()
     belief = Belief.prior(space).observe_all(executions)
     _ = belief.probs

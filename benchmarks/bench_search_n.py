@@ -60,7 +60,9 @@ def main() -> None:
     parser.add_argument("--trials", default="10,5,2")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
-    for n, trials in zip((int(s) for s in args.sizes.split(",")), (int(t) for t in args.trials.split(","))):
+    sizes = [int(s) for s in args.sizes.split(",")]
+    counts = [int(t) for t in args.trials.split(",")]
+    for n, trials in zip(sizes, counts, strict=True):
         names = tuple(f"o{i}" for i in range(n))
         results = []
         for t in range(trials):

@@ -91,13 +91,13 @@ SIX = tuple(f"o{i}" for i in range(6))
 
 
 def _brute_force_hypotheses(n, p_new, p_eventually):
-    """Every chains-2019 hypothesis over n objects as (F set, ordered pairs) with its prior, by walking perms and cuts."""
+    """Every chains-2019 hypothesis over n objects as (F set, ordered pairs) with its prior (perms and cuts)."""
     structures: dict[frozenset, float] = {}
     for perm in permutations(range(n)):
         for cuts in product((False, True), repeat=n - 1):
             p = math.prod(p_new if c else 1 - p_new for c in cuts) / math.factorial(n)
             pairs, block = set(), [perm[0]]
-            for element, cut in zip(perm[1:], cuts):
+            for element, cut in zip(perm[1:], cuts, strict=True):
                 if cut:
                     block = []
                 pairs.update((e, element) for e in block)
@@ -196,6 +196,5 @@ def test_entropy_agrees_with_enumeration(task, prior):
         belief = belief.observe(trace, ok)
     post = posterior_after(domain, prior, data)
     assert post.entropy() == pytest.approx(belief.entropy, abs=1e-9)
-    space = belief.space
     blocks = post.block_count_distribution()
     assert blocks.sum() == pytest.approx(1.0, abs=1e-9)

@@ -16,7 +16,9 @@ def parse_objects(text: str) -> tuple[str, ...]:
     """Object names from 'a,b,c': 2 to 10 distinct lower-case names; ValueError naming the problem."""
     names = tuple(part.strip() for part in text.split(","))
     if not MIN_OBJECTS <= len(names) <= MAX_OBJECTS:
-        raise ValueError(f"--objects: {len(names)} names given; expected {MIN_OBJECTS} to {MAX_OBJECTS}, comma-separated")
+        raise ValueError(
+            f"--objects: {len(names)} names given; expected {MIN_OBJECTS} to {MAX_OBJECTS}, comma-separated"
+        )
     for name in names:
         if not NAME.fullmatch(name) or name in KEYWORDS:
             raise ValueError(

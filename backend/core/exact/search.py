@@ -8,7 +8,8 @@ and the scores are exact posterior probabilities. The min-regret plan maximises 
 the active query minimises |2 P(acceptable) - 1|. With ``max_expansions`` large enough the search
 is exhaustive where the bounds do not prune, so its result is the proven optimum
 (``SearchResult.proven``); otherwise it is the best execution found. Prefixes are expanded
-``batch_size`` at a time, their children scored in one batched DP. Ties keep the first found.
+``batch_size`` at a time (lowest bound first, then ``_priority``), their children scored in one
+batched DP. Ties keep the first found.
 """
 
 from __future__ import annotations
@@ -25,7 +26,7 @@ from .posterior import ExactPosterior
 TOLERANCE = 1e-12
 OBJECTIVES = ("min-regret", "active")
 # The active query's bounds rarely prune (most prefixes can still end either way), so it gets a budget.
-DEFAULT_EXPANSIONS = {"min-regret": 2_000, "active": 24}
+DEFAULT_EXPANSIONS = {"min-regret": 2_000, "active": 64}
 
 
 @dataclass(frozen=True)
@@ -76,14 +77,14 @@ def best_execution(
     root_p = posterior.p_acceptable(voc.of_events(()))
     best = ((), root_p, _score(objective, root_p))
     lo, hi = posterior.p_within([lower_constraint(voc, ()), upper_constraint(voc, ())])
-    frontier: list[tuple[float, int, tuple[str, ...]]] = [(_bound(objective, lo, hi), 0, ())]
+    frontier: list[tuple[float, float, int, tuple[str, ...]]] = [(_bound(objective, lo, hi), best[2], 0, ())]
     expanded = 0
     counter = 0
     perfect = -1.0 if objective == "min-regret" else 0.0  # nothing scores better than this
     while frontier and expanded < max_expansions and best[2] > perfect + TOLERANCE:
         batch: list[tuple[str, ...]] = []
         while frontier and len(batch) < batch_size and expanded + len(batch) < max_expansions:
-            bound, _, events = heapq.heappop(frontier)
+            bound, _, _, events = heapq.heappop(frontier)
             if bound < best[2] - TOLERANCE:
                 batch.append(events)
         expanded += len(batch)
@@ -97,7 +98,7 @@ def best_execution(
         probs = posterior.p_within(cons).reshape(len(children), -1)
         if objective == "min-regret":  # the lower bound does not prune a maximisation
             probs = np.concatenate([probs[:, :1], probs[:, 1:], probs[:, 1:]], axis=1)
-        for child, (p, lo, hi) in zip(children, probs, strict=True):
+        for child, p in zip(children, probs[:, 0], strict=True):
             score = _score(objective, float(p))
             if score < best[2] - TOLERANCE:
                 best = (child, float(p), score)
@@ -105,8 +106,8 @@ def best_execution(
             child_bound = _bound(objective, float(lo), float(hi))
             if child_bound < best[2] - TOLERANCE and len(child) < len(propositions):
                 counter += 1
-                heapq.heappush(frontier, (child_bound, counter, child))
-    proven = best[2] <= perfect + TOLERANCE or not any(b < best[2] - TOLERANCE for b, _, _ in frontier)
+                heapq.heappush(frontier, (child_bound, _priority(objective, float(p), len(child)), counter, child))
+    proven = best[2] <= perfect + TOLERANCE or not any(b < best[2] - TOLERANCE for b, _, _, _ in frontier)
     return SearchResult(best[0], best[1], expanded, proven)
 
 
@@ -122,3 +123,11 @@ def _bound(objective: str, lo: float, hi: float) -> float:
     if lo <= 0.5 <= hi:
         return 0.0
     return min(abs(2.0 * lo - 1.0), abs(2.0 * hi - 1.0))
+
+
+def _priority(objective: str, p: float, depth: int) -> float:
+    """Among prefixes with equal bounds, which to expand first: plans the best own score; queries dive
+    (deepest first, then the best own score), since their bounds rarely prune shallow prefixes."""
+    if objective == "min-regret":
+        return -p
+    return -depth + abs(2.0 * p - 1.0)
