@@ -154,7 +154,12 @@ def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool) -> np.ndar
         seq = np.zeros((M, 1 << n, K, L))
         seq[:, 0, 0, 0] = 1.0
         used = (block != 0).any(axis=(0, 2))  # blocks with a valid order under some constraint of the batch
+        position = np.zeros(1 << n, dtype=np.int64)
+        for level in _levels(n):
+            position[level] = np.arange(level.size)
         for s in range(1, n + 1):
+            sets = _levels(n)[s]
+            level_sum = np.zeros((M, sets.size, K, L))  # every S of size s is written by this level only
             for b in range(1, s + 1):
                 S, B, R, per = _pairs(n, s, b)
                 shift = b * (b - 1) // 2
@@ -167,10 +172,8 @@ def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool) -> np.ndar
                     blk = block[:, B, :2 * b + 1].reshape(M, n_sets, per, 2 * b + 1) * weight
                     outer = np.matmul(blk.transpose(0, 1, 3, 2), rest)  # summed over the blocks B of each set
                     outer = outer.reshape(M, n_sets, 2 * b + 1, K - step, deg)
-                    target = seq[:, S[::per]]
-                    for d in range(2 * b + 1):
-                        target[:, :, step:, shift + d:shift + d + deg] += outer[:, :, d]
-                    seq[:, S[::per]] = target
+                    for d in range(2 * b + 1):  # S[::per] lists the level's sets in order
+                        level_sum[:, :, step:, shift + d:shift + d + deg] += outer[:, :, d]
                 elif live.any():  # few valid blocks (data constrain them): only those pairs
                     keep = np.flatnonzero(live)
                     S_k, B_k, R_k = S[keep], B[keep], R[keep]
@@ -181,7 +184,8 @@ def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool) -> np.ndar
                         acc[..., d:d + deg] += blk[:, :, None, d:d + 1] * rest
                     starts = np.flatnonzero(np.r_[True, S_k[1:] != S_k[:-1]])
                     summed = np.add.reduceat(acc, starts, axis=1)
-                    seq[:, S_k[starts], step:, shift:shift + acc.shape[-1]] += summed
+                    level_sum[:, position[S_k[starts]], step:, shift:shift + acc.shape[-1]] += summed
+            seq[:, sets] = level_sum
         total = seq[:, full] / (p * math.factorial(n))
     return _times_extra(prior, cons, total)
 
