@@ -9,7 +9,9 @@ the active query minimises |2 P(acceptable) - 1|. With ``max_expansions`` large 
 is exhaustive where the bounds do not prune, so its result is the proven optimum
 (``SearchResult.proven``); otherwise it is the best execution found. Prefixes are expanded
 ``batch_size`` at a time (lowest bound first, then ``_priority``), their children scored in one
-batched DP. Ties keep the first found.
+batched DP. The active query starts from the best of ``dives`` seeded random walks (every child on
+the way scored), which the many ties favour, so the bounds prune from the start. Ties keep the
+first found.
 """
 
 from __future__ import annotations
@@ -67,6 +69,8 @@ def best_execution(
     objective: str = "min-regret",
     max_expansions: int | None = None,
     batch_size: int = 8,
+    dives: int = 8,
+    seed: int = 0,
 ) -> SearchResult:
     """The execution (propositions in order of first occurrence) that is best for the objective."""
     if objective not in OBJECTIVES:
@@ -76,6 +80,9 @@ def best_execution(
     voc = posterior.prior.vocabulary
     root_p = posterior.p_acceptable(voc.of_events(()))
     best = ((), root_p, _score(objective, root_p))
+    if objective == "active" and dives > 0:  # ties are many: random dives find a strong incumbent fast
+        best = min(best, _random_dives(posterior, propositions, dives, np.random.default_rng(seed)),
+                   key=lambda item: item[2])
     lo, hi = posterior.p_within([lower_constraint(voc, ()), upper_constraint(voc, ())])
     frontier: list[tuple[float, float, int, tuple[str, ...]]] = [(_bound(objective, lo, hi), best[2], 0, ())]
     expanded = 0
@@ -131,3 +138,29 @@ def _priority(objective: str, p: float, depth: int) -> float:
     if objective == "min-regret":
         return -p
     return -depth + abs(2.0 * p - 1.0)
+
+
+def _random_dives(
+    posterior: ExactPosterior, propositions: Sequence[str], dives: int, rng: np.random.Generator
+) -> tuple[tuple[str, ...], float, float]:
+    """The most uncertain execution seen on ``dives`` uniformly random walks from the empty execution,
+    every child along the way scored (one batched DP per depth)."""
+    voc = posterior.prior.vocabulary
+    best: tuple[tuple[str, ...], float, float] = ((), 0.0, 2.0)
+    paths: list[tuple[str, ...]] = [() for _ in range(dives)]
+    while paths:
+        children = [path + (p,) for path in paths for p in propositions if p not in path]
+        if not children:
+            break
+        probs = posterior.p_within([voc.of_events(child) for child in children])
+        for child, p in zip(children, probs, strict=True):
+            if abs(2.0 * p - 1.0) < best[2] - TOLERANCE:
+                best = (child, float(p), abs(2.0 * float(p) - 1.0))
+        walks, start = [], 0
+        for path in paths:
+            k = len(propositions) - len(path)
+            if k > 1:
+                walks.append(children[start + int(rng.integers(k))])
+            start += k
+        paths = walks
+    return best
