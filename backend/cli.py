@@ -13,8 +13,10 @@ import numpy as np
 
 from .core.belief import Belief, LabelledExecution
 from .core.data_io import InputError, load_authors_demo, load_executions
-from .core.domain import get_domain
+from .core.domain import Domain, get_domain
 from .core.hypotheses import get_space
+from .core.exact import commands as exact_commands
+from .core.exact.objects import objects_domain, parse_objects
 from .core.priors import DEFAULT_PRIOR, NAMED_PRIORS
 from .core.puns import CRITERIA
 from .core.queries import QUERY_STRATEGIES, plan_execution, query
@@ -26,8 +28,24 @@ class CliError(Exception):
     """A user-facing error: printed as one line on stderr, exit code 2."""
 
 
+def _domain(args: argparse.Namespace) -> Domain:
+    """The task's domain: a named one (--task) or the objects the user named (--objects)."""
+    if (args.task is None) == (args.objects is None):
+        raise CliError("give exactly one of --task dinner|synthetic and --objects a,b,c,...")
+    if args.objects is not None:
+        if args.authors_format:
+            raise CliError("--authors-format reads the dinner objects W0..W4; use it with --task dinner")
+        return objects_domain(parse_objects(args.objects))
+    return get_domain(args.task)
+
+
+def _factorised(args: argparse.Namespace) -> bool:
+    """Whether the task is past what enumeration handles (more than five named objects)."""
+    return args.objects is not None and len(_domain(args).orderable) > exact_commands.ENUMERATED_UP_TO
+
+
 def _executions(args: argparse.Namespace) -> list[LabelledExecution]:
-    domain = get_domain(args.task)
+    domain = _domain(args)
     if not args.authors_format:
         if len(args.data) != 1:
             raise CliError("--data takes exactly one executions JSON file (or use --authors-format)")
@@ -49,7 +67,10 @@ def _executions(args: argparse.Namespace) -> list[LabelledExecution]:
 
 def _posterior(args: argparse.Namespace) -> tuple[Belief, float]:
     executions = _executions(args)
-    space = get_space(args.task, args.prior)
+    if args.task:
+        space = get_space(args.task, args.prior)
+    else:
+        space = exact_commands.enumerated_space(_domain(args), args.prior)
     started = time.perf_counter()
     belief = Belief.prior(space).observe_all(executions)
     _ = belief.probs
@@ -60,6 +81,8 @@ def cmd_infer(args: argparse.Namespace) -> dict:
     """Posterior over formulas from labelled executions."""
     if args.top <= 0:
         raise CliError(f"--top must be a positive whole number, got {args.top}")
+    if _factorised(args):
+        return exact_commands.infer(_domain(args), args.prior, _executions(args), args.top)
     belief, seconds = _posterior(args)
     space = belief.space.domain.clause_space
     support = [
@@ -78,6 +101,8 @@ def cmd_infer(args: argparse.Namespace) -> dict:
 
 def cmd_query(args: argparse.Namespace) -> dict:
     """The robot's next query under a strategy."""
+    if _factorised(args):
+        return exact_commands.query(_domain(args), args.prior, _executions(args), args.strategy, args.seed)
     belief, _ = _posterior(args)
     started = time.perf_counter()
     execution, p = query(belief, args.strategy, np.random.default_rng(args.seed))
@@ -86,6 +111,8 @@ def cmd_query(args: argparse.Namespace) -> dict:
 
 def cmd_plan(args: argparse.Namespace) -> dict:
     """The robot's best execution under a PUnS criterion."""
+    if _factorised(args):
+        return exact_commands.plan(_domain(args), args.prior, _executions(args), args.criterion)
     belief, _ = _posterior(args)
     started = time.perf_counter()
     execution, p = plan_execution(belief, args.criterion, np.random.default_rng(args.seed), risk=args.risk)
@@ -93,7 +120,8 @@ def cmd_plan(args: argparse.Namespace) -> dict:
 
 
 def _learner_args(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--task", required=True, choices=["dinner", "synthetic"], help="task domain")
+    parser.add_argument("--task", choices=["dinner", "synthetic"], help="task domain (or --objects)")
+    parser.add_argument("--objects", help="the task's own objects, 2 to 10 comma-separated names (or --task)")
     parser.add_argument("--prior", default=DEFAULT_PRIOR, choices=list(NAMED_PRIORS),
                         help=f"prior over formulas (default {DEFAULT_PRIOR})")
     parser.add_argument("--data", required=True, action="append",

@@ -9,7 +9,7 @@ from ..core.priors import DEFAULT_PRIOR, NAMED_PRIORS
 from ..core.metrics import DEFAULT_METRIC, SIMILARITY_METRICS
 from ..core.queries import DEFAULT_QUERY_TIES, QUERY_TIES
 from ..core.teachers import DEFAULT_DEMO_MODE, DEMO_MODES
-from .settings import DOMAINS, TRUTH_SAMPLERS, ExperimentSettings, parse_n_query, resolve_truth_sampler
+from .settings import DOMAINS, SIZE_DEFAULTS, TRUTH_SAMPLERS, ExperimentSettings, parse_n_query, resolve_truth_sampler
 
 DESCRIPTION = """Simulated teaching sessions comparing Active, Random and Batch learning, paired within
 each run (same ground truth, same first two demonstrations). Writes runs.csv, summary.csv,
@@ -47,6 +47,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--test-success", action="store_true",
                    help="also record whether the robot's test execution (the min-regret plan) after each "
                         "n_query's final step satisfies the truth (slower)")
+    p.add_argument("--n-waypoints", type=int, default=SIZE_DEFAULTS["n_waypoints"],
+                   help="synthetic domain: waypoints (default 5; 2 to 5 while the sweep enumerates)")
+    p.add_argument("--n-threats", type=int, default=SIZE_DEFAULTS["n_threats"],
+                   help="synthetic domain: threats (default 5)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     p.add_argument("--dask", metavar="ADDRESS", default=None,
                    help="run on an existing Dask cluster, e.g. tcp://scheduler:8786, instead of locally")
@@ -68,6 +72,8 @@ def settings_from_args(args: argparse.Namespace) -> ExperimentSettings:
         similarity=args.similarity,
         query_ties=args.query_ties,
         test_success=args.test_success,
+        n_waypoints=args.n_waypoints,
+        n_threats=args.n_threats,
     )
 
 

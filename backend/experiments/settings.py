@@ -25,6 +25,11 @@ DOMAINS: dict[str, tuple[str, str | None]] = {
 TRUTH_SAMPLERS = ("prior", "authors")
 FIXED_TRUTH = "fixed"
 DEFAULT_N_QUERY = (1, 2, 3, 4, 5, 6)
+# The synthetic domain's size; configs written before these settings existed had the paper's 5 + 5.
+SIZE_DEFAULTS = {"n_waypoints": 5, "n_threats": 5}
+MAX_ENUMERATED_WAYPOINTS = 5  # the sweep needs the enumerated learner (similarity, MAP) for now
+MAX_ENUMERATED_HYPOTHESES = 1_100_000
+CHAIN_STRUCTURES = {2: 3, 3: 13, 4: 73, 5: 501}  # sets of linear chains over n orderable propositions
 
 
 @dataclass(frozen=True)
@@ -43,6 +48,8 @@ class ExperimentSettings:
     query_ties: str = DEFAULT_QUERY_TIES
     test_success: bool = False
     n_demonstrations: int = field(default=N_DEMONSTRATIONS)
+    n_waypoints: int = SIZE_DEFAULTS["n_waypoints"]
+    n_threats: int = SIZE_DEFAULTS["n_threats"]
 
     def __post_init__(self) -> None:
         if self.domain not in DOMAINS:
@@ -73,10 +80,40 @@ class ExperimentSettings:
             )
         if self.query_ties not in QUERY_TIES:
             raise ValueError(f"unknown query tie-breaking {self.query_ties!r}; expected one of {', '.join(QUERY_TIES)}")
+        self._check_size()
         if not isinstance(self.test_success, bool):
             raise ValueError(f"test_success must be true or false, got {self.test_success!r}")
         if isinstance(self.noise, bool) or not isinstance(self.noise, (int, float)) or not 0.0 <= self.noise <= 1.0:
             raise ValueError(f"noise must be a probability in [0, 1], got {self.noise!r}")
+
+    def _check_size(self) -> None:
+        """The synthetic domain's size: 2 to 5 waypoints, threats while the space stays enumerable."""
+        _whole("n_waypoints", self.n_waypoints, minimum=2)
+        _whole("n_threats", self.n_threats, minimum=0)
+        if self.domain != "synthetic" and (self.n_waypoints, self.n_threats) != tuple(SIZE_DEFAULTS.values()):
+            raise ValueError(f"--n-waypoints and --n-threats size the synthetic domain; domain {self.domain!r} "
+                             "has its own objects")
+        if self.n_waypoints > MAX_ENUMERATED_WAYPOINTS:
+            raise ValueError(
+                f"n_waypoints {self.n_waypoints}: the sweep measures similarity and the MAP formula, which the "
+                f"exact learner past {MAX_ENUMERATED_WAYPOINTS} objects does not compute yet; expected 2 to "
+                f"{MAX_ENUMERATED_WAYPOINTS}"
+            )
+        if self._space_size(self.n_threats) > MAX_ENUMERATED_HYPOTHESES:
+            raise ValueError(
+                f"{self.n_waypoints} waypoints and {self.n_threats} threats: the enumerated space would be too large "
+                f"for a sweep; expected fewer threats (at most {self._max_threats()} with {self.n_waypoints} waypoints)"
+            )
+
+    def _space_size(self, n_threats: int) -> int:
+        """Chain structures times G/F codes: the enumerated space of the chains priors."""
+        return CHAIN_STRUCTURES[self.n_waypoints] * 2 ** (self.n_waypoints + n_threats)
+
+    def _max_threats(self) -> int:
+        t = 0
+        while self._space_size(t + 1) <= MAX_ENUMERATED_HYPOTHESES:
+            t += 1
+        return t
 
     @property
     def task(self) -> str:

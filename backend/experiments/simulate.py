@@ -14,14 +14,15 @@ from __future__ import annotations
 
 import json
 import time
+from functools import lru_cache
 from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
 from ..core.belief import Belief
-from ..core.domain import get_domain
-from ..core.hypotheses import HypothesisSpace, get_space
+from ..core.domain import synthetic_domain
+from ..core.hypotheses import HypothesisSpace, build_space, get_space
 from ..core.queries import Execution, active_query, plan_execution, random_query
 from ..core.teachers import SimulatedTeacher, authors_ground_truth, sample_ground_truth
 from ..core.session import PROTOCOLS
@@ -44,6 +45,18 @@ class StepResult:
     map_formula: str
     seconds: float
     test_success: int | None = None
+
+
+def experiment_space(settings: ExperimentSettings) -> HypothesisSpace:
+    """The enumerated hypothesis space of the sweep's domain (the synthetic one at its requested size)."""
+    if settings.task == "synthetic" and (settings.n_waypoints, settings.n_threats) != (5, 5):
+        return _sized_synthetic_space(settings.n_waypoints, settings.n_threats, settings.prior)
+    return get_space(settings.task, settings.prior)
+
+
+@lru_cache(maxsize=4)
+def _sized_synthetic_space(n_waypoints: int, n_threats: int, prior: str) -> HypothesisSpace:
+    return build_space(synthetic_domain(n_waypoints, n_threats), prior)
 
 
 def draw_truth(settings: ExperimentSettings, space: HypothesisSpace, rng: np.random.Generator) -> int:
@@ -132,8 +145,8 @@ def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
     """All rows of one run (every protocol, every n_query, every learning step), in sorted order."""
     streams = np.random.SeedSequence([settings.seed, run]).spawn(4 + len(PROTOCOLS))
     truth_rng, demo_rng = np.random.default_rng(streams[0]), np.random.default_rng(streams[1])
-    space = get_space(settings.task, settings.prior)
-    domain = get_domain(settings.task)
+    space = experiment_space(settings)
+    domain = space.domain
     truth = draw_truth(settings, space, truth_rng)
     teacher = SimulatedTeacher(domain, truth, noise=settings.noise, demo_mode=settings.demo_mode)
     tester = _Tester(settings, truth, streams[3 + len(PROTOCOLS)])  # spawned last: earlier streams unchanged

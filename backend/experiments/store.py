@@ -24,7 +24,7 @@ except ImportError:  # Windows
     fcntl = None  # type: ignore[assignment]
 
 from ..core.session import PROTOCOLS
-from .settings import ExperimentSettings
+from .settings import SIZE_DEFAULTS, ExperimentSettings
 from .simulate import COLUMNS
 
 CONFIG = "config.json"
@@ -164,7 +164,7 @@ class OutputFolder:
         """Refuse a folder written with other settings; return its earlier invocations."""
         try:
             config = json.loads(self.config_json.read_text(encoding="utf-8"))
-            stored = config["settings"]
+            stored = {**SIZE_DEFAULTS, **config["settings"]}
             invocations = list(config.get("invocations", []))
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise ValueError(f"{self.config_json} is not a sweep config this command wrote ({exc}); "

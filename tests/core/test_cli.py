@@ -83,3 +83,60 @@ def test_synthetic_domain_end_to_end(tmp_path):
     plan = json.loads(out.stdout)
     assert plan["p_acceptable"] == pytest.approx(1.0)
     assert not any(p.startswith("t") for p in plan["execution"])  # threats are never needed
+
+
+SIX_OBJECTS = "plate,bowl,cup,fork,knife,glass"
+
+
+def _objects_data(tmp_path):
+    data = {"executions": [
+        {"trace": [[], ["plate"], ["plate", "bowl"], ["plate", "bowl", "cup"]], "label": True},
+        {"trace": [[], ["plate"], ["plate", "cup"], ["plate", "cup", "bowl"]], "label": True},
+        {"trace": [[], ["cup"]], "label": False},
+    ]}
+    path = tmp_path / "six.json"
+    path.write_text(json.dumps(data))
+    return path
+
+
+def test_objects_past_five_use_the_factorised_learner(tmp_path):
+    path = _objects_data(tmp_path)
+    out = tableteach("infer", "--objects", SIX_OBJECTS, "--data", str(path), "--top", "4")
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert set(result) >= {"support", "entropy", "map", "n_hypotheses", "seconds", "marginals"}
+    assert result["entropy"] > 0
+    probs = [m["p"] for m in result["marginals"]]
+    assert len(probs) == 4 and probs == sorted(probs, reverse=True)
+    assert result["marginals"][0]["clause"] in ("F(plate)", "F(bowl)")  # both demonstrations placed them
+    plan = json.loads(tableteach("plan", "--objects", SIX_OBJECTS, "--data", str(path)).stdout)
+    assert plan["execution"][0] == "plate" and set(plan) == {"execution", "p_acceptable", "seconds"}
+
+
+def test_objects_up_to_five_are_enumerated(tmp_path):
+    path = tmp_path / "two.json"
+    path.write_text(json.dumps({"executions": [{"trace": [[], ["a"], ["a", "b"]], "label": True}]}))
+    result = json.loads(tableteach("infer", "--objects", "a,b", "--data", str(path)).stdout)
+    assert result["map"] == result["support"][0]["formula"]
+
+
+@pytest.mark.parametrize("objects, message", [
+    ("a", "1 names given; expected 2 to 10"),
+    ("a,b,c,d,e,f,g,h,i,j,k", "11 names given"),
+    ("a,b,a", "a named more than once"),
+    ("a,Bowl", "'Bowl' is not a valid object name"),
+    ("a,F", "'F' is not a valid object name"),
+])
+def test_bad_objects_are_one_line_and_exit_2(tmp_path, objects, message):
+    out = tableteach("infer", "--objects", objects, "--data", str(_objects_data(tmp_path)))
+    assert out.returncode == 2 and message in out.stderr and len(out.stderr.strip().splitlines()) == 1
+
+
+def test_data_naming_other_objects_is_refused(tmp_path):
+    out = tableteach("infer", "--objects", "plate,bowl", "--data", str(_objects_data(tmp_path)))
+    assert out.returncode == 2 and "unknown proposition(s) cup" in out.stderr
+
+
+def test_task_and_objects_exclude_each_other(tmp_path):
+    out = tableteach("infer", "--task", "dinner", "--objects", "a,b", "--data", str(_objects_data(tmp_path)))
+    assert out.returncode == 2 and "exactly one of --task" in out.stderr

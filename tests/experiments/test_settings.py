@@ -51,3 +51,34 @@ def test_fixed_truth_domains_resolve_to_the_fixed_sampler():
     assert resolve_truth_sampler("dinner-random", "authors") == "authors"
     with pytest.raises(ValueError, match="ground truth is fixed"):
         resolve_truth_sampler("dinner-task1", "prior")
+
+
+def test_synthetic_size_is_a_setting_with_the_papers_default():
+    from tableteach.experiments.settings import ExperimentSettings
+
+    assert (ExperimentSettings().n_waypoints, ExperimentSettings().n_threats) == (5, 5)
+    assert ExperimentSettings(n_waypoints=4, n_threats=6).to_json()["n_threats"] == 6
+
+
+@pytest.mark.parametrize("sizes, message", [
+    ({"n_waypoints": 8, "n_threats": 8}, "n_waypoints 8"),
+    ({"n_waypoints": 5, "n_threats": 9}, "at most 6 with 5 waypoints"),
+    ({"n_waypoints": 1}, "n_waypoints must be a whole number >= 2"),
+    ({"domain": "dinner-task1", "truth_sampler": "fixed", "n_waypoints": 4}, "has its own objects"),
+])
+def test_bad_synthetic_sizes_are_named(sizes, message):
+    from tableteach.experiments.settings import ExperimentSettings
+
+    with pytest.raises(ValueError, match=message):
+        ExperimentSettings(**sizes)
+
+
+def test_a_smaller_synthetic_run_uses_its_own_propositions():
+    from tableteach.experiments.settings import ExperimentSettings
+    from tableteach.experiments.simulate import experiment_space, simulate_run
+
+    settings = ExperimentSettings(n_waypoints=3, n_threats=2, runs=1, n_query=(1,))
+    space = experiment_space(settings)
+    assert space.domain.propositions == ("w0", "w1", "w2", "t0", "t1")
+    rows = simulate_run(settings, 0)
+    assert rows and all(0.0 <= row[9] <= 1.0 for row in rows)  # similarity column

@@ -1,0 +1,166 @@
+"""Min-regret plans and most-uncertain queries by best-first branch and bound over execution prefixes.
+
+An execution is the order in which propositions first became true; every clause depends only on
+that, so a prefix bounds every extension of it: an extension is accepted by at most the formulas
+the prefix has not yet violated (``upper``), and by at least those it has already satisfied for
+good (``lower``: its F items and its orders whose antecedent occurred, no G clause). Both bounds
+and the scores are exact posterior probabilities. The min-regret plan maximises P(acceptable);
+the active query minimises |2 P(acceptable) - 1|. With ``max_expansions`` large enough the search
+is exhaustive where the bounds do not prune, so its result is the proven optimum
+(``SearchResult.proven``); otherwise it is the best execution found. Prefixes are expanded
+``batch_size`` at a time (lowest bound first, then ``_priority``), their children scored in one
+batched DP. The active query starts from the best of ``dives`` seeded random walks (every child on
+the way scored), which the many ties favour, so the bounds prune from the start. Ties keep the
+first found.
+"""
+
+from __future__ import annotations
+
+import heapq
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+from .constraints import Constraint, Vocabulary
+from .posterior import ExactPosterior
+
+TOLERANCE = 1e-12
+OBJECTIVES = ("min-regret", "active")
+# The active query's bounds rarely prune (most prefixes can still end either way), so it gets a budget.
+DEFAULT_EXPANSIONS = {"min-regret": 2_000, "active": 64}
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """The best execution found, its P(acceptable), how many prefixes were expanded, and if it is proven."""
+
+    events: tuple[str, ...]
+    p_acceptable: float
+    expanded: int
+    proven: bool
+
+
+def upper_constraint(voc: Vocabulary, events: Sequence[str]) -> Constraint:
+    """Clauses that the prefix has not violated: what some extension may still satisfy."""
+    first = {p: t for t, p in reversed(list(enumerate(events)))}
+    n = voc.n
+    g_ok = sum(1 << i for i, p in enumerate(voc.orderable) if p not in first) & voc.forbiddable_orderable
+    into = []
+    for pz in voc.orderable:
+        allowed = 0
+        for a, pa in enumerate(voc.orderable):
+            if pa != pz and (pz not in first or (pa in first and first[pa] <= first[pz])):
+                allowed |= 1 << a
+        into.append(allowed)
+    g_extra = sum(1 << j for j, p in enumerate(voc.extra) if p not in first)
+    return Constraint(g_ok, (1 << n) - 1, tuple(into), g_extra)
+
+
+def lower_constraint(voc: Vocabulary, events: Sequence[str]) -> Constraint:
+    """Clauses every extension of the prefix satisfies: occurred F items, orders whose antecedent occurred first."""
+    sat = voc.of_events(events)
+    return Constraint(0, sat.f_ok, sat.into, 0)
+
+
+def best_execution(
+    posterior: ExactPosterior,
+    propositions: Sequence[str],
+    objective: str = "min-regret",
+    max_expansions: int | None = None,
+    batch_size: int = 8,
+    dives: int = 8,
+    seed: int = 0,
+) -> SearchResult:
+    """The execution (propositions in order of first occurrence) that is best for the objective."""
+    if objective not in OBJECTIVES:
+        raise ValueError(f"unknown search objective {objective!r}; expected one of {', '.join(OBJECTIVES)}")
+    if max_expansions is None:
+        max_expansions = DEFAULT_EXPANSIONS[objective]
+    voc = posterior.prior.vocabulary
+    root_p = posterior.p_acceptable(voc.of_events(()))
+    best = ((), root_p, _score(objective, root_p))
+    if objective == "active" and dives > 0:  # ties are many: random dives find a strong incumbent fast
+        best = min(best, _random_dives(posterior, propositions, dives, np.random.default_rng(seed)),
+                   key=lambda item: item[2])
+    lo, hi = posterior.p_within([lower_constraint(voc, ()), upper_constraint(voc, ())])
+    frontier: list[tuple[float, float, int, tuple[str, ...]]] = [(_bound(objective, lo, hi), best[2], 0, ())]
+    expanded = 0
+    counter = 0
+    perfect = -1.0 if objective == "min-regret" else 0.0  # nothing scores better than this
+    while frontier and expanded < max_expansions and best[2] > perfect + TOLERANCE:
+        batch: list[tuple[str, ...]] = []
+        while frontier and len(batch) < batch_size and expanded + len(batch) < max_expansions:
+            bound, _, _, events = heapq.heappop(frontier)
+            if bound < best[2] - TOLERANCE:
+                batch.append(events)
+        expanded += len(batch)
+        children = [events + (p,) for events in batch for p in propositions if p not in events]
+        if not children:
+            continue
+        cons = []
+        for child in children:
+            lower = [lower_constraint(voc, child)] if objective == "active" else []
+            cons += [voc.of_events(child), *lower, upper_constraint(voc, child)]
+        probs = posterior.p_within(cons).reshape(len(children), -1)
+        if objective == "min-regret":  # the lower bound does not prune a maximisation
+            probs = np.concatenate([probs[:, :1], probs[:, 1:], probs[:, 1:]], axis=1)
+        for child, p in zip(children, probs[:, 0], strict=True):
+            score = _score(objective, float(p))
+            if score < best[2] - TOLERANCE:
+                best = (child, float(p), score)
+        for child, (p, lo, hi) in zip(children, probs, strict=True):
+            child_bound = _bound(objective, float(lo), float(hi))
+            if child_bound < best[2] - TOLERANCE and len(child) < len(propositions):
+                counter += 1
+                heapq.heappush(frontier, (child_bound, _priority(objective, float(p), len(child)), counter, child))
+    proven = best[2] <= perfect + TOLERANCE or not any(b < best[2] - TOLERANCE for b, _, _, _ in frontier)
+    return SearchResult(best[0], best[1], expanded, proven)
+
+
+def _score(objective: str, p: float) -> float:
+    """Lower is better: -P(acceptable) for plans, |2P - 1| for queries."""
+    return -p if objective == "min-regret" else abs(2.0 * p - 1.0)
+
+
+def _bound(objective: str, lo: float, hi: float) -> float:
+    """A lower bound on the score of any extension whose P(acceptable) lies in [lo, hi]."""
+    if objective == "min-regret":
+        return -hi
+    if lo <= 0.5 <= hi:
+        return 0.0
+    return min(abs(2.0 * lo - 1.0), abs(2.0 * hi - 1.0))
+
+
+def _priority(objective: str, p: float, depth: int) -> float:
+    """Among prefixes with equal bounds, which to expand first: plans the best own score; queries dive
+    (deepest first, then the best own score), since their bounds rarely prune shallow prefixes."""
+    if objective == "min-regret":
+        return -p
+    return -depth + abs(2.0 * p - 1.0)
+
+
+def _random_dives(
+    posterior: ExactPosterior, propositions: Sequence[str], dives: int, rng: np.random.Generator
+) -> tuple[tuple[str, ...], float, float]:
+    """The most uncertain execution seen on ``dives`` uniformly random walks from the empty execution,
+    every child along the way scored (one batched DP per depth)."""
+    voc = posterior.prior.vocabulary
+    best: tuple[tuple[str, ...], float, float] = ((), 0.0, 2.0)
+    paths: list[tuple[str, ...]] = [() for _ in range(dives)]
+    while paths:
+        children = [path + (p,) for path in paths for p in propositions if p not in path]
+        if not children:
+            break
+        probs = posterior.p_within([voc.of_events(child) for child in children])
+        for child, p in zip(children, probs, strict=True):
+            if abs(2.0 * p - 1.0) < best[2] - TOLERANCE:
+                best = (child, float(p), abs(2.0 * float(p) - 1.0))
+        walks, start = [], 0
+        for path in paths:
+            k = len(propositions) - len(path)
+            if k > 1:
+                walks.append(children[start + int(rng.integers(k))])
+            start += k
+        paths = walks
+    return best
