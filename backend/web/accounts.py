@@ -12,7 +12,7 @@ from starlette.concurrency import run_in_threadpool
 
 from ..errors import NotAuthenticated, TryLater
 from ..services import accounts
-from .auth import FailureLimiter
+from .limits import AddressLimiter
 from .deps import MAX_ID, ContextDep, Experimenter
 from .exports import csv_lines
 from .schemas import error_responses
@@ -109,7 +109,7 @@ def audit_csv(ctx: ContextDep) -> StreamingResponse:
 async def login(body: Login, request: Request, ctx: ContextDep) -> dict[str, Any]:
     """Log in to the dashboard with a name and password: a token for 12 hours. Wrong ones count towards the
     per-address limit on wrong experimenter keys."""
-    limiter: FailureLimiter = request.app.state.key_failures
+    limiter: AddressLimiter = request.app.state.key_failures
     client = request.client.host if request.client else "unknown"
     wait = limiter.retry_after(client)
     if wait:
@@ -117,7 +117,7 @@ async def login(body: Login, request: Request, ctx: ContextDep) -> dict[str, Any
                        status=429)
     issued = await run_in_threadpool(accounts.login, ctx, body.name, body.password)
     if issued is None:
-        limiter.failed(client)
+        limiter.record(client)
         raise NotAuthenticated("wrong name or password")
     token, record = issued
     people = {p["name"]: p for p in await run_in_threadpool(accounts.people, ctx)}
