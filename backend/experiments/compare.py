@@ -2,6 +2,7 @@
 
     python -m tableteach.experiments.compare user-study --task1 DIR --task2 DIR --out DIR
     python -m tableteach.experiments.compare noise DIR [DIR ...] --n-query 6 --out DIR
+    python -m tableteach.experiments.compare paired A_DIR B_DIR --label "information gain - uncertainty" --out DIR
 
 Each DIR is a sweep folder written by ``tableteach experiment`` (runs.csv and config.json).
 """
@@ -103,7 +104,7 @@ def noise_table(folders: Sequence[Path | str], n_query: int) -> list[dict[str, o
     """Per noise level and protocol: final median similarity and mean test success (with CIs)."""
     out: list[dict[str, object]] = []
     for folder in folders:
-        settings, _ = read_sweep(folder)
+        settings = read_settings(folder)
         with open(Path(folder) / "summary.csv", encoding="utf-8", newline="") as f:
             summary = [r for r in csv.DictReader(f) if int(r["n_query"]) == n_query]
         if not summary:
@@ -111,15 +112,30 @@ def noise_table(folders: Sequence[Path | str], n_query: int) -> list[dict[str, o
         for r in summary:
             if r["test_success_mean"] == "nan":
                 raise ValueError(f"{folder} did not measure test success; expected a sweep run with --test-success")
-            out.append({"noise": float(settings["noise"]), "protocol": r["protocol"], "n_query": n_query,
+            out.append({"noise": float(settings["noise"]), "learner": learner_name(settings),
+                        "protocol": r["protocol"], "n_query": n_query,
                         **{k: float(r[k]) for k in ("similarity_median", "similarity_median_lo", "similarity_median_hi",
                                                     "test_success_mean", "test_success_mean_lo",
                                                     "test_success_mean_hi")}})
-    return sorted(out, key=lambda r: (PROTOCOLS.index(r["protocol"]), r["noise"]))
+    return sorted(out, key=lambda r: (PROTOCOLS.index(r["protocol"]), r["learner"] != "authors", r["noise"]))
 
 
-NOISE_COLUMNS = ("noise", "protocol", "n_query", "similarity_median", "similarity_median_lo", "similarity_median_hi",
-                 "test_success_mean", "test_success_mean_lo", "test_success_mean_hi")
+def read_settings(folder: Path | str) -> dict:
+    """A sweep folder's settings (config.json only: committed folders keep no runs.csv)."""
+    try:
+        return json.loads((Path(folder) / "config.json").read_text(encoding="utf-8"))["settings"]
+    except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise ValueError(f"{folder} is not a sweep folder ({exc}); expected config.json written by "
+                         "tableteach experiment") from None
+
+
+def learner_name(settings: dict) -> str:
+    """'authors' for the authors' learner, else 'noise-aware' (it assumes the sweep's verdict-flip rate)."""
+    return "noise-aware" if float(settings.get("learner_flip_rate", 0.0)) > 0 else "authors"
+
+
+NOISE_COLUMNS = ("noise", "learner", "protocol", "n_query", "similarity_median", "similarity_median_lo",
+                 "similarity_median_hi", "test_success_mean", "test_success_mean_lo", "test_success_mean_hi")
 
 
 def plot_noise(table: Sequence[dict[str, object]], title: str, stem: Path) -> list[Path]:
@@ -131,15 +147,21 @@ def plot_noise(table: Sequence[dict[str, object]], title: str, stem: Path) -> li
               ("test_success_mean", "robot test executions acceptable (share, 95% CI)"))
     for ax, (metric, label) in zip(axes, panels, strict=True):
         for protocol in PROTOCOLS:
-            mine = [r for r in table if r["protocol"] == protocol]
-            x = np.array([r["noise"] for r in mine], dtype=float)
-            y = np.array([r[metric] for r in mine], dtype=float)
-            err = [y - np.array([r[f"{metric}_lo"] for r in mine]), np.array([r[f"{metric}_hi"] for r in mine]) - y]
-            ax.errorbar(x, y, yerr=err, marker="o", capsize=3, color=COLORS[protocol], label=LABELS[protocol])
+            for learner, style in (("authors", "-"), ("noise-aware", "--")):
+                mine = [r for r in table if r["protocol"] == protocol and r["learner"] == learner]
+                if not mine or (learner == "noise-aware" and protocol == "batch"):  # Batch sees no verdicts
+                    continue
+                x = np.array([r["noise"] for r in mine], dtype=float)
+                y = np.array([r[metric] for r in mine], dtype=float)
+                err = [y - np.array([r[f"{metric}_lo"] for r in mine]),
+                       np.array([r[f"{metric}_hi"] for r in mine]) - y]
+                name = LABELS[protocol] + (", noise-aware learner" if learner == "noise-aware" else "")
+                ax.errorbar(x, y, yerr=err, marker="o" if learner == "authors" else "s", capsize=3, linestyle=style,
+                            color=COLORS[protocol], label=name)
         ax.set_xlabel("probability that the teacher flips a verdict (--noise)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    axes[0].legend()
+    axes[0].legend(fontsize=8)
     fig.suptitle(title, fontsize=9)
     return _save(fig, stem)
 
@@ -157,6 +179,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     noise.add_argument("folders", nargs="+")
     noise.add_argument("--n-query", type=int, required=True)
     noise.add_argument("--out", required=True)
+    paired = sub.add_parser("paired", help="B minus A, paired by run, for two sweeps of the same runs that "
+                                           "differ in a learner setting")
+    paired.add_argument("a")
+    paired.add_argument("b")
+    paired.add_argument("--label", default="B - A", help="what the difference is, for the figure")
+    paired.add_argument("--protocol", action="append", choices=list(PROTOCOLS),
+                        help="only this protocol (repeatable; default all)")
+    paired.add_argument("--out", required=True)
     args = parser.parse_args(argv)
     out = Path(args.out)
     try:
@@ -169,10 +199,20 @@ def main(argv: Sequence[str] | None = None) -> int:
             title = (f"User study in simulation: dinner table, 2 demonstrations + {n_query} queries, prior "
                      f"{s1['prior']}, {s1['demo_mode']} demonstrations, {s1['runs']} runs per task")
             plot_study(curves, title, out / "user_study")
+        elif args.what == "paired":
+            from .paired_sweeps import PAIRED_SWEEP_COLUMNS, paired_sweep_differences, plot_paired_sweeps
+            from .settings import ExperimentSettings
+
+            (sa, ra), (sb, rb) = read_sweep(args.a), read_sweep(args.b)
+            a, b = ExperimentSettings.from_json(sa), ExperimentSettings.from_json(sb)
+            table = paired_sweep_differences(a, ra, b, rb, args.protocol or PROTOCOLS)
+            write_csv(out / "paired_sweeps.csv", table, PAIRED_SWEEP_COLUMNS)
+            title = f"{args.label}: {a.domain}, {min(a.runs, b.runs)} paired runs, seed {a.seed}"
+            plot_paired_sweeps(table, args.label, title, out / "paired_sweeps")
         else:
             table = noise_table(args.folders, args.n_query)
             write_csv(out / "noise.csv", table, NOISE_COLUMNS)
-            settings, _ = read_sweep(args.folders[0])
+            settings = read_settings(args.folders[0])
             title = (f"Fallible teacher: {settings['domain']}, n_query {args.n_query}, {settings['runs']} runs, "
                      f"{settings['demo_mode']} demonstrations (demonstrations are never noisy)")
             plot_noise(table, title, out / "noise")

@@ -63,3 +63,38 @@ def test_compare_refuses_what_it_cannot_use(tmp_path, capsys):
 def test_compare_needs_its_arguments(argv):
     with pytest.raises(SystemExit):
         main(argv)
+
+
+def test_noise_table_puts_the_noise_aware_learner_beside_the_authors(tmp_path):
+    folders = [sweep(tmp_path, "plain", domain="dinner-random", noise=0.2),
+               sweep(tmp_path, "aware", domain="dinner-random", noise=0.2, learner_flip_rate=0.2)]
+    assert main(["noise", *map(str, folders), "--n-query", "3", "--out", str(tmp_path / "noise")]) == 0
+    rows = read(tmp_path / "noise" / "noise.csv")
+    assert {(r["learner"], r["protocol"]) for r in rows} == {(learner, p) for learner in ("authors", "noise-aware")
+                                                             for p in ("active", "random", "batch")}
+    batch = {r["learner"]: r["similarity_median"] for r in rows if r["protocol"] == "batch"}
+    assert batch["authors"] == batch["noise-aware"]  # Batch sees no verdicts, so the learners agree on it
+
+
+def test_paired_sweeps_subtract_run_by_run(tmp_path):
+    base = sweep(tmp_path, "base", domain="dinner-random")
+    eig = sweep(tmp_path, "eig", domain="dinner-random", active_strategy="information-gain")
+    assert main(["paired", str(base), str(eig), "--label", "EIG - US", "--out", str(tmp_path / "p")]) == 0
+    rows = {r["protocol"]: r for r in read(tmp_path / "p" / "paired_sweeps.csv")}
+    assert set(rows) == {"active", "random", "batch"}
+    for protocol in ("random", "batch"):  # only Active's queries changed
+        assert float(rows[protocol]["diff_mean"]) == 0.0 and float(rows[protocol]["share_equal"]) == 1.0
+    finals = {}
+    for name in ("base", "eig"):
+        finals[name] = sorted((int(r["run"]), float(r["similarity"])) for r in read(tmp_path / name / "runs.csv")
+                              if r["protocol"] == "active" and r["n_executions"] == "5")
+    diffs = [b[1] - a[1] for a, b in zip(finals["base"], finals["eig"], strict=True)]
+    assert float(rows["active"]["diff_mean"]) == pytest.approx(sum(diffs) / len(diffs), abs=1e-3)
+    assert (tmp_path / "p" / "paired_sweeps.svg").exists()
+
+
+def test_paired_sweeps_refuse_sweeps_of_other_runs(tmp_path, capsys):
+    a = sweep(tmp_path, "a", domain="dinner-random")
+    b = sweep(tmp_path, "b", domain="dinner-random", seed=1)
+    assert main(["paired", str(a), str(b), "--out", str(tmp_path / "p")]) == 2
+    assert "do not share their runs (seed: 0 vs 1)" in capsys.readouterr().err
