@@ -19,11 +19,15 @@ from typing import Sequence
 import numpy as np
 
 from ..core.session import PROTOCOLS
-from .summary import bootstrap_ci, group_rng, write_csv
+from .summary import bootstrap_ci, group_rng, weighted_bootstrap_ci, write_csv
 
-# The paper's user study: median final similarity after 2 demonstrations + 3 queries.
-PAPER_STUDY_MEDIANS = {"task1": 0.87, "task2": 0.78, "both": 0.83}
-STUDY_TASKS = ("task1", "task2", "both")
+# The paper's user study: median final similarity after 2 demonstrations + 3 queries; its pooled median
+# is over 21 Task 1 and 6 Task 2 participants, so "both-paper" weighs the tasks 21:6 ("both": 50:50).
+PAPER_STUDY_MEDIANS = {"task1": 0.87, "task2": 0.78, "both-paper": 0.83}
+PAPER_STUDY_PARTICIPANTS = {"task1": 21, "task2": 6}
+STUDY_TASKS = ("task1", "task2", "both", "both-paper")
+STUDY_TITLES = {"task1": "Task 1", "task2": "Task 2", "both": "both tasks, 50:50",
+                "both-paper": "both tasks, 21:6 (the paper's participants)"}
 _STREAM = 3  # bootstrap stream apart from the summary's and the learning curve's
 
 
@@ -45,8 +49,12 @@ def study_curves(task_rows: dict[str, list[dict[str, str]]], n_query: int, n_dem
     """Per task (both pooled too), protocol and executions seen from the last demonstration on: median
     similarity and mean entropy with 95% bootstrap CIs."""
     out: list[dict[str, object]] = []
-    pooled = {"both": [r for t in ("task1", "task2") for r in task_rows[t]], **task_rows}
+    pooled = {"both": [r for t in ("task1", "task2") for r in task_rows[t]],
+              "both-paper": [r for t in ("task1", "task2") for r in task_rows[t]], **task_rows}
     for t, task in enumerate(STUDY_TASKS):
+        if task == "both-paper":
+            out += _weighted_curves(task_rows, n_query, n_demonstrations, seed, t)
+            continue
         rows = [r for r in pooled[task] if int(r["n_query"]) == n_query and int(r["n_executions"]) >= n_demonstrations]
         for p, protocol in enumerate(PROTOCOLS):
             mine = [r for r in rows if r["protocol"] == protocol]
@@ -63,6 +71,27 @@ def study_curves(task_rows: dict[str, list[dict[str, str]]], n_query: int, n_dem
     return out
 
 
+def _weighted_curves(task_rows: dict[str, list[dict[str, str]]], n_query: int, n_demonstrations: int, seed: int,
+                     t: int) -> list[dict[str, object]]:
+    """The two tasks pooled with the weights of the paper's participants (21:6), CIs resampled within each task."""
+    out: list[dict[str, object]] = []
+    shares = [PAPER_STUDY_PARTICIPANTS["task1"], PAPER_STUDY_PARTICIPANTS["task2"]]
+    for p, protocol in enumerate(PROTOCOLS):
+        per_task = [[r for r in task_rows[task] if r["protocol"] == protocol and int(r["n_query"]) == n_query
+                     and int(r["n_executions"]) >= n_demonstrations] for task in ("task1", "task2")]
+        for k in sorted({int(r["n_executions"]) for r in per_task[0]} & {int(r["n_executions"]) for r in per_task[1]}):
+            steps = [[r for r in rows if int(r["n_executions"]) == k] for rows in per_task]
+            sim = weighted_bootstrap_ci([np.array([float(r["similarity"]) for r in s]) for s in steps], shares,
+                                        "median", group_rng(seed, _STREAM, t, p, k, 0))
+            ent = weighted_bootstrap_ci([np.array([float(r["entropy"]) for r in s]) for s in steps], shares,
+                                        "mean", group_rng(seed, _STREAM, t, p, k, 1))
+            out.append({"task": "both-paper", "protocol": protocol, "n_executions": k,
+                        "runs": sum(len(s) for s in steps), "similarity_median": sim[0],
+                        "similarity_median_lo": sim[1], "similarity_median_hi": sim[2], "entropy_mean": ent[0],
+                        "entropy_mean_lo": ent[1], "entropy_mean_hi": ent[2]})
+    return out
+
+
 STUDY_COLUMNS = ("task", "protocol", "n_executions", "runs", "similarity_median", "similarity_median_lo",
                  "similarity_median_hi", "entropy_mean", "entropy_mean_lo", "entropy_mean_hi")
 
@@ -71,7 +100,7 @@ def plot_study(curves: Sequence[dict[str, object]], title: str, stem: Path) -> l
     """Median similarity (top) and mean entropy (bottom) against executions seen, one column per task."""
     from .figures import COLORS, LABELS, _save, plt
 
-    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5), sharex=True, sharey="row", constrained_layout=True)
+    fig, axes = plt.subplots(2, len(STUDY_TASKS), figsize=(15, 6.5), sharex=True, sharey="row", constrained_layout=True)
     for col, task in enumerate(STUDY_TASKS):
         for protocol in PROTOCOLS:
             mine = [c for c in curves if c["task"] == task and c["protocol"] == protocol]
@@ -86,9 +115,10 @@ def plot_study(curves: Sequence[dict[str, object]], title: str, stem: Path) -> l
                 ax.plot(x, y, marker="o", color=COLORS[protocol], label=LABELS[protocol])
                 ax.fill_between(x, low, high, color=COLORS[protocol], alpha=0.2)
         last = max(c["n_executions"] for c in curves)
-        axes[0, col].plot([last], [PAPER_STUDY_MEDIANS[task]], marker="*", markersize=14, color="black",
-                          linestyle="none", label="paper's user study (Active)")
-        axes[0, col].set_title({"task1": "Task 1", "task2": "Task 2", "both": "both tasks"}[task])
+        if task in PAPER_STUDY_MEDIANS:  # the paper pooled its participants 21:6, not 50:50
+            axes[0, col].plot([last], [PAPER_STUDY_MEDIANS[task]], marker="*", markersize=14, color="black",
+                              linestyle="none", label="paper's user study (Active)")
+        axes[0, col].set_title(STUDY_TITLES[task], fontsize=10)
         axes[1, col].set_xlabel("executions seen (demonstrations, then queries)")
         axes[1, col].set_xticks(sorted({int(c["n_executions"]) for c in curves}))
         for ax in axes[:, col]:
