@@ -58,6 +58,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="run on an existing Dask cluster, e.g. tcp://scheduler:8786, instead of locally")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_experiment)
+    from .replay_cli import register as register_replay
+
+    register_replay(subparsers)
 
 
 def settings_from_args(args: argparse.Namespace) -> ExperimentSettings:
