@@ -121,3 +121,27 @@ def test_bad_input_is_one_line_and_exit_2(export_zip: Path, tmp_path: Path, caps
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and message in err, err
     assert not (out / "replay.csv").exists()
+
+
+def test_the_export_gives_each_verdict_its_probability_and_each_participant_a_score(export_zip: Path) -> None:
+    from tableteach.core.session import belief_after
+    from tableteach.experiments.replay import _verdicts, read_export, sessions
+
+    export = read_export(export_zip)
+    for rows in sessions(export).values():
+        data = _verdicts(rows)
+        probabilities = []
+        for row in rows:
+            step = int(row["step"])
+            if row["record_kind"] != "query":
+                assert row["p_verdict"] == ""
+                continue
+            trace, acceptable, _ = data[step - 1]
+            p = belief_after("dinner", export.study["prior"], tuple((t, a) for t, a, _ in data[:step - 1])
+                             ).p_acceptable(trace)
+            assert float(row["p_verdict"]) == pytest.approx(p if acceptable else 1 - p, abs=1e-12)
+            probabilities.append(float(row["p_verdict"]))
+        scores = {row["consistency_score"] for row in rows}
+        assert len(scores) == 1  # one score per participant and task, on every row
+        assert 0.0 <= float(scores.pop()) <= 1.0
+    assert probabilities  # the last session had queries
