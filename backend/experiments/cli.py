@@ -61,6 +61,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     from .replay_cli import register as register_replay
 
     register_replay(subparsers)
+    from .power_cli import register as register_power
+
+    register_power(subparsers)
 
 
 def settings_from_args(args: argparse.Namespace) -> ExperimentSettings:
