@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import csv
 import sys
+import textwrap
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -107,5 +108,5 @@ def plot_replay(rows: Sequence[dict[str, Any]], names: Sequence[str], title: str
     ax.set_xlim(-0.6, max(len(names), 1) - 0.4)
     ax.set_ylabel("final similarity, learner − study robot\n(one dot per participant and task; bar: median)")
     ax.grid(alpha=0.3, axis="y")
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(textwrap.fill(title, 80), fontsize=9)
     return _save(fig, stem)
