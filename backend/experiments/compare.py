@@ -243,7 +243,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             table = noise_table(args.folders, args.n_query)
             write_csv(out / "noise.csv", table, NOISE_COLUMNS)
             settings = read_settings(args.folders[0])
-            title = (f"Fallible teacher: {settings['domain']}, n_query {args.n_query}, {settings['runs']} runs, "
+            runs = "/".join(sorted({str(read_settings(f)["runs"]) for f in args.folders}, key=int))
+            title = (f"Fallible teacher: {settings['domain']}, n_query {args.n_query}, {runs} runs, "
                      f"{settings['demo_mode']} demonstrations (demonstrations are never noisy)")
             plot_noise(table, title, out / "noise")
     except ValueError as exc:
