@@ -4,6 +4,12 @@ Likelihood of one labelled execution under a hypothesis with N clauses (the auth
 acceptable: 2^N if the execution satisfies it, else epsilon; unacceptable: 2^N / (2^N - 1) if
 the execution violates it, else epsilon (the empty formula cannot be violated). Executions are
 independent, so an update adds one log-likelihood vector: incremental and exact.
+
+The noise-aware learner (``flip_rate`` f in (0, 0.5)) assumes each verdict is the formula's truth
+value flipped with probability f: a hypothesis the verdict agrees with keeps the authors' term
+times (1 - f), one it contradicts gets f instead of epsilon, so one wrong verdict can no longer
+rule out the truth. f = 0 is the authors' likelihood above, computed by the same code as before.
+Demonstrations are never flipped (they are acceptable by definition).
 """
 
 from __future__ import annotations
@@ -35,12 +41,43 @@ class LabelledExecution:
         return LabelledExecution(tuple(frozenset(s) for s in trace), bool(acceptable))
 
 
-def log_likelihood(space: HypothesisSpace, sat_mask: int, acceptable: bool) -> np.ndarray:
-    """Log-likelihood of one labelled execution (given its satisfied-clause mask) for every hypothesis."""
+MAX_FLIP_RATE = 0.5  # exclusive: at 1/2 a verdict says nothing, above it says the opposite
+
+
+def check_flip_rate(flip_rate: float, name: str = "flip rate") -> float:
+    """The flip rate as a float if it is a probability in [0, 0.5), else a ValueError naming it."""
+    if isinstance(flip_rate, bool) or not isinstance(flip_rate, (int, float, np.floating)) or not (
+        0.0 <= flip_rate < MAX_FLIP_RATE
+    ):
+        raise ValueError(f"{name} must be a probability in [0, {MAX_FLIP_RATE}), got {flip_rate!r}")
+    return float(flip_rate)
+
+
+def log_likelihood(space: HypothesisSpace, sat_mask: int, acceptable: bool, flip_rate: float = 0.0) -> np.ndarray:
+    """Log-likelihood of one labelled execution (given its satisfied-clause mask) for every hypothesis;
+    ``flip_rate`` > 0 is the noise-aware likelihood of a verdict (module docstring)."""
     satisfied = space.satisfied_by(sat_mask)
+    if flip_rate == 0.0:
+        if acceptable:
+            return np.where(satisfied, space.ll_satisfied, space.log_epsilon)
+        return np.where(satisfied, space.log_epsilon, space.ll_violated)
+    keep, flip = np.log1p(-flip_rate), np.log(flip_rate)
     if acceptable:
-        return np.where(satisfied, space.ll_satisfied, space.log_epsilon)
-    return np.where(satisfied, space.log_epsilon, space.ll_violated)
+        return np.where(satisfied, keep + space.ll_satisfied, flip)
+    return np.where(satisfied, flip, keep + space.ll_violated)
+
+
+def likelihood_terms(space: HypothesisSpace, acceptable: bool, flip_rate: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """(log-likelihood if satisfied, if violated) per hypothesis for one verdict: ``log_likelihood`` in two parts."""
+    n = space.size
+    if flip_rate == 0.0:
+        if acceptable:
+            return space.ll_satisfied, np.full(n, space.log_epsilon)
+        return np.full(n, space.log_epsilon), space.ll_violated
+    keep, flip = np.log1p(-flip_rate), np.log(flip_rate)
+    if acceptable:
+        return keep + space.ll_satisfied, np.full(n, flip)
+    return np.full(n, flip), keep + space.ll_violated
 
 
 @dataclass(frozen=True, eq=False)
@@ -55,15 +92,15 @@ class Belief:
         """The prior belief of a hypothesis space."""
         return Belief(space, space.log_prior.copy())
 
-    def observe_mask(self, sat_mask: int, acceptable: bool) -> "Belief":
+    def observe_mask(self, sat_mask: int, acceptable: bool, flip_rate: float = 0.0) -> "Belief":
         """The posterior after one execution with the given satisfied-clause mask and label."""
-        ll = log_likelihood(self.space, sat_mask, acceptable)
+        ll = log_likelihood(self.space, sat_mask, acceptable, check_flip_rate(flip_rate))
         return Belief(self.space, self.log_weights + ll)
 
-    def observe(self, trace: Trace, acceptable: bool) -> "Belief":
-        """The posterior after one labelled execution."""
+    def observe(self, trace: Trace, acceptable: bool, flip_rate: float = 0.0) -> "Belief":
+        """The posterior after one labelled execution (a verdict flipped w.p. ``flip_rate`` if > 0)."""
         self.space.domain.check_trace(list(trace))
-        return self.observe_mask(self.space.domain.clause_space.sat_mask(trace), acceptable)
+        return self.observe_mask(self.space.domain.clause_space.sat_mask(trace), acceptable, flip_rate)
 
     def observe_all(self, executions: Sequence[LabelledExecution]) -> "Belief":
         """The posterior after several labelled executions, applied in order."""

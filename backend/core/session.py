@@ -20,7 +20,7 @@ from typing import Any, Literal
 
 import numpy as np
 
-from .belief import Belief
+from .belief import Belief, check_flip_rate
 from .domain import get_domain
 from .hypotheses import get_space
 from .priors import DEFAULT_PRIOR, NAMED_PRIORS
@@ -52,6 +52,7 @@ class SessionConfig:
     n_tests: int = 3
     criterion: str = "min-regret"
     seed: int = 0
+    flip_rate: float = 0.0  # the learner's assumed verdict-flip probability (0: the authors' learner)
 
     def __post_init__(self) -> None:
         get_domain(self.task)
@@ -67,6 +68,7 @@ class SessionConfig:
                 raise ValueError(f"{name} must be a whole number >= 0, got {value!r}")
         if not isinstance(self.seed, int) or isinstance(self.seed, bool) or self.seed < 0:
             raise ValueError(f"seed must be a whole number >= 0, got {self.seed!r}")
+        check_flip_rate(self.flip_rate, "flip_rate")
 
     @property
     def demonstrations_needed(self) -> int:
@@ -153,7 +155,10 @@ class SessionState:
             }
             for r in self.records
         ]
-        return json.dumps({"schema": SCHEMA_VERSION, "config": asdict(self.config), "records": records})
+        config = asdict(self.config)
+        if config["flip_rate"] == 0.0:  # sessions of the authors' learner are stored exactly as before
+            del config["flip_rate"]
+        return json.dumps({"schema": SCHEMA_VERSION, "config": config, "records": records})
 
     @staticmethod
     def from_json(text: str) -> "SessionState":
@@ -196,20 +201,45 @@ def belief_after(task: str, prior: str, data: tuple[tuple[Trace, bool], ...]) ->
     return belief_after(task, prior, data[:-1]).observe(trace, acceptable)
 
 
+Verdicts = tuple[tuple[Trace, bool, bool], ...]
+
+
+@lru_cache(maxsize=32)
+def noisy_belief_after(task: str, prior: str, flip_rate: float, data: Verdicts) -> Belief:
+    """The noise-aware learner's belief after (trace, acceptable, is_verdict) items, in order: verdicts
+    are flipped w.p. ``flip_rate``, demonstrations never (flip_rate 0 is ``belief_after``, same cache)."""
+    if flip_rate == 0.0:
+        return belief_after(task, prior, tuple((trace, acceptable) for trace, acceptable, _ in data))
+    if not data:
+        return Belief.prior(get_space(task, prior))
+    trace, acceptable, is_verdict = data[-1]
+    earlier = noisy_belief_after(task, prior, flip_rate, data[:-1])
+    return earlier.observe(trace, acceptable, flip_rate if is_verdict else 0.0)
+
+
 def learning_data(state: SessionState) -> tuple[tuple[Trace, bool], ...]:
     """The session's demonstrations and assessed queries as (trace, acceptable), in order."""
     return tuple((r.trace, bool(r.acceptable)) for r in state.learning_records)
 
 
+def learning_verdicts(state: SessionState) -> Verdicts:
+    """The session's learning data as (trace, acceptable, is_verdict): is_verdict is False for demonstrations."""
+    return tuple((r.trace, bool(r.acceptable), r.kind == "query") for r in state.learning_records)
+
+
 def belief(state: SessionState) -> Belief:
     """The learner's belief after the session's demonstrations and assessed queries."""
-    return belief_after(state.config.task, state.config.prior, learning_data(state))
+    c = state.config
+    if c.flip_rate == 0.0:
+        return belief_after(c.task, c.prior, learning_data(state))
+    return noisy_belief_after(c.task, c.prior, c.flip_rate, learning_verdicts(state))
 
 
 def beliefs_by_step(state: SessionState) -> list[Belief]:
     """The belief before any data and after each learning record, in order."""
-    data = learning_data(state)
-    return [belief_after(state.config.task, state.config.prior, data[:k]) for k in range(len(data) + 1)]
+    c = state.config
+    data = learning_verdicts(state)
+    return [noisy_belief_after(c.task, c.prior, c.flip_rate, data[:k]) for k in range(len(data) + 1)]
 
 
 def position(state: SessionState) -> tuple[StepKind, int, int]:

@@ -7,7 +7,7 @@ from typing import Any
 
 from ..core.priors import DEFAULT_PRIOR, NAMED_PRIORS
 from ..core.metrics import DEFAULT_METRIC, SIMILARITY_METRICS
-from ..core.queries import DEFAULT_QUERY_TIES, QUERY_TIES
+from ..core.queries import ACTIVE_STRATEGIES, DEFAULT_ACTIVE_STRATEGY, DEFAULT_QUERY_TIES, QUERY_TIES
 from ..core.teachers import DEFAULT_DEMO_MODE, DEMO_MODES
 from .settings import DOMAINS, SIZE_DEFAULTS, TRUTH_SAMPLERS, ExperimentSettings, parse_n_query, resolve_truth_sampler
 
@@ -44,6 +44,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                         "or shortest first")
     p.add_argument("--noise", type=float, default=0.0,
                    help="probability that the teacher flips an assessment (default 0)")
+    p.add_argument("--active-strategy", choices=list(ACTIVE_STRATEGIES), default=DEFAULT_ACTIVE_STRATEGY,
+                   help="how Active picks a query: uncertainty sampling (default, the authors') or expected "
+                        "information gain (exact over the belief; ours)")
+    p.add_argument("--learner-flip-rate", "--flip-rate", type=float, default=0.0, metavar="P",
+                   help="the noise-aware learner: assume each verdict is flipped with probability P in [0, 0.5) "
+                        "(default 0: the authors' learner, which treats every verdict as certain)")
     p.add_argument("--test-success", action="store_true",
                    help="also record whether the robot's test execution (the min-regret plan) after each "
                         "n_query's final step satisfies the truth (slower)")
@@ -56,6 +62,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="run on an existing Dask cluster, e.g. tcp://scheduler:8786, instead of locally")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(run=cmd_experiment)
+    from .replay_cli import register as register_replay
+
+    register_replay(subparsers)
+    from .power_cli import register as register_power
+
+    register_power(subparsers)
 
 
 def settings_from_args(args: argparse.Namespace) -> ExperimentSettings:
@@ -69,8 +81,10 @@ def settings_from_args(args: argparse.Namespace) -> ExperimentSettings:
         truth_sampler=resolve_truth_sampler(args.domain, args.truth_sampler),
         demo_mode=args.demo_mode,
         noise=args.noise,
+        learner_flip_rate=args.learner_flip_rate,
         similarity=args.similarity,
         query_ties=args.query_ties,
+        active_strategy=args.active_strategy,
         test_success=args.test_success,
         n_waypoints=args.n_waypoints,
         n_threats=args.n_threats,

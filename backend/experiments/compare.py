@@ -2,6 +2,7 @@
 
     python -m tableteach.experiments.compare user-study --task1 DIR --task2 DIR --out DIR
     python -m tableteach.experiments.compare noise DIR [DIR ...] --n-query 6 --out DIR
+    python -m tableteach.experiments.compare paired A_DIR B_DIR --label "information gain - uncertainty" --out DIR
 
 Each DIR is a sweep folder written by ``tableteach experiment`` (runs.csv and config.json).
 """
@@ -18,11 +19,15 @@ from typing import Sequence
 import numpy as np
 
 from ..core.session import PROTOCOLS
-from .summary import bootstrap_ci, group_rng, write_csv
+from .summary import bootstrap_ci, group_rng, weighted_bootstrap_ci, write_csv
 
-# The paper's user study: median final similarity after 2 demonstrations + 3 queries.
-PAPER_STUDY_MEDIANS = {"task1": 0.87, "task2": 0.78, "both": 0.83}
-STUDY_TASKS = ("task1", "task2", "both")
+# The paper's user study: median final similarity after 2 demonstrations + 3 queries; its pooled median
+# is over 21 Task 1 and 6 Task 2 participants, so "both-paper" weighs the tasks 21:6 ("both": 50:50).
+PAPER_STUDY_MEDIANS = {"task1": 0.87, "task2": 0.78, "both-paper": 0.83}
+PAPER_STUDY_PARTICIPANTS = {"task1": 21, "task2": 6}
+STUDY_TASKS = ("task1", "task2", "both", "both-paper")
+STUDY_TITLES = {"task1": "Task 1", "task2": "Task 2", "both": "both tasks, 50:50",
+                "both-paper": "both tasks, 21:6 (the paper's participants)"}
 _STREAM = 3  # bootstrap stream apart from the summary's and the learning curve's
 
 
@@ -44,8 +49,12 @@ def study_curves(task_rows: dict[str, list[dict[str, str]]], n_query: int, n_dem
     """Per task (both pooled too), protocol and executions seen from the last demonstration on: median
     similarity and mean entropy with 95% bootstrap CIs."""
     out: list[dict[str, object]] = []
-    pooled = {"both": [r for t in ("task1", "task2") for r in task_rows[t]], **task_rows}
+    pooled = {"both": [r for t in ("task1", "task2") for r in task_rows[t]],
+              "both-paper": [r for t in ("task1", "task2") for r in task_rows[t]], **task_rows}
     for t, task in enumerate(STUDY_TASKS):
+        if task == "both-paper":
+            out += _weighted_curves(task_rows, n_query, n_demonstrations, seed, t)
+            continue
         rows = [r for r in pooled[task] if int(r["n_query"]) == n_query and int(r["n_executions"]) >= n_demonstrations]
         for p, protocol in enumerate(PROTOCOLS):
             mine = [r for r in rows if r["protocol"] == protocol]
@@ -62,6 +71,27 @@ def study_curves(task_rows: dict[str, list[dict[str, str]]], n_query: int, n_dem
     return out
 
 
+def _weighted_curves(task_rows: dict[str, list[dict[str, str]]], n_query: int, n_demonstrations: int, seed: int,
+                     t: int) -> list[dict[str, object]]:
+    """The two tasks pooled with the weights of the paper's participants (21:6), CIs resampled within each task."""
+    out: list[dict[str, object]] = []
+    shares = [PAPER_STUDY_PARTICIPANTS["task1"], PAPER_STUDY_PARTICIPANTS["task2"]]
+    for p, protocol in enumerate(PROTOCOLS):
+        per_task = [[r for r in task_rows[task] if r["protocol"] == protocol and int(r["n_query"]) == n_query
+                     and int(r["n_executions"]) >= n_demonstrations] for task in ("task1", "task2")]
+        for k in sorted({int(r["n_executions"]) for r in per_task[0]} & {int(r["n_executions"]) for r in per_task[1]}):
+            steps = [[r for r in rows if int(r["n_executions"]) == k] for rows in per_task]
+            sim = weighted_bootstrap_ci([np.array([float(r["similarity"]) for r in s]) for s in steps], shares,
+                                        "median", group_rng(seed, _STREAM, t, p, k, 0))
+            ent = weighted_bootstrap_ci([np.array([float(r["entropy"]) for r in s]) for s in steps], shares,
+                                        "mean", group_rng(seed, _STREAM, t, p, k, 1))
+            out.append({"task": "both-paper", "protocol": protocol, "n_executions": k,
+                        "runs": sum(len(s) for s in steps), "similarity_median": sim[0],
+                        "similarity_median_lo": sim[1], "similarity_median_hi": sim[2], "entropy_mean": ent[0],
+                        "entropy_mean_lo": ent[1], "entropy_mean_hi": ent[2]})
+    return out
+
+
 STUDY_COLUMNS = ("task", "protocol", "n_executions", "runs", "similarity_median", "similarity_median_lo",
                  "similarity_median_hi", "entropy_mean", "entropy_mean_lo", "entropy_mean_hi")
 
@@ -70,7 +100,7 @@ def plot_study(curves: Sequence[dict[str, object]], title: str, stem: Path) -> l
     """Median similarity (top) and mean entropy (bottom) against executions seen, one column per task."""
     from .figures import COLORS, LABELS, _save, plt
 
-    fig, axes = plt.subplots(2, 3, figsize=(12, 6.5), sharex=True, sharey="row", constrained_layout=True)
+    fig, axes = plt.subplots(2, len(STUDY_TASKS), figsize=(15, 6.5), sharex=True, sharey="row", constrained_layout=True)
     for col, task in enumerate(STUDY_TASKS):
         for protocol in PROTOCOLS:
             mine = [c for c in curves if c["task"] == task and c["protocol"] == protocol]
@@ -85,9 +115,10 @@ def plot_study(curves: Sequence[dict[str, object]], title: str, stem: Path) -> l
                 ax.plot(x, y, marker="o", color=COLORS[protocol], label=LABELS[protocol])
                 ax.fill_between(x, low, high, color=COLORS[protocol], alpha=0.2)
         last = max(c["n_executions"] for c in curves)
-        axes[0, col].plot([last], [PAPER_STUDY_MEDIANS[task]], marker="*", markersize=14, color="black",
-                          linestyle="none", label="paper's user study (Active)")
-        axes[0, col].set_title({"task1": "Task 1", "task2": "Task 2", "both": "both tasks"}[task])
+        if task in PAPER_STUDY_MEDIANS:  # the paper pooled its participants 21:6, not 50:50
+            axes[0, col].plot([last], [PAPER_STUDY_MEDIANS[task]], marker="*", markersize=14, color="black",
+                              linestyle="none", label="paper's user study (Active)")
+        axes[0, col].set_title(STUDY_TITLES[task], fontsize=10)
         axes[1, col].set_xlabel("executions seen (demonstrations, then queries)")
         axes[1, col].set_xticks(sorted({int(c["n_executions"]) for c in curves}))
         for ax in axes[:, col]:
@@ -103,7 +134,7 @@ def noise_table(folders: Sequence[Path | str], n_query: int) -> list[dict[str, o
     """Per noise level and protocol: final median similarity and mean test success (with CIs)."""
     out: list[dict[str, object]] = []
     for folder in folders:
-        settings, _ = read_sweep(folder)
+        settings = read_settings(folder)
         with open(Path(folder) / "summary.csv", encoding="utf-8", newline="") as f:
             summary = [r for r in csv.DictReader(f) if int(r["n_query"]) == n_query]
         if not summary:
@@ -111,15 +142,30 @@ def noise_table(folders: Sequence[Path | str], n_query: int) -> list[dict[str, o
         for r in summary:
             if r["test_success_mean"] == "nan":
                 raise ValueError(f"{folder} did not measure test success; expected a sweep run with --test-success")
-            out.append({"noise": float(settings["noise"]), "protocol": r["protocol"], "n_query": n_query,
+            out.append({"noise": float(settings["noise"]), "learner": learner_name(settings),
+                        "protocol": r["protocol"], "n_query": n_query,
                         **{k: float(r[k]) for k in ("similarity_median", "similarity_median_lo", "similarity_median_hi",
                                                     "test_success_mean", "test_success_mean_lo",
                                                     "test_success_mean_hi")}})
-    return sorted(out, key=lambda r: (PROTOCOLS.index(r["protocol"]), r["noise"]))
+    return sorted(out, key=lambda r: (PROTOCOLS.index(r["protocol"]), r["learner"] != "authors", r["noise"]))
 
 
-NOISE_COLUMNS = ("noise", "protocol", "n_query", "similarity_median", "similarity_median_lo", "similarity_median_hi",
-                 "test_success_mean", "test_success_mean_lo", "test_success_mean_hi")
+def read_settings(folder: Path | str) -> dict:
+    """A sweep folder's settings (config.json only: committed folders keep no runs.csv)."""
+    try:
+        return json.loads((Path(folder) / "config.json").read_text(encoding="utf-8"))["settings"]
+    except (OSError, json.JSONDecodeError, KeyError, TypeError) as exc:
+        raise ValueError(f"{folder} is not a sweep folder ({exc}); expected config.json written by "
+                         "tableteach experiment") from None
+
+
+def learner_name(settings: dict) -> str:
+    """'authors' for the authors' learner, else 'noise-aware' (it assumes the sweep's verdict-flip rate)."""
+    return "noise-aware" if float(settings.get("learner_flip_rate", 0.0)) > 0 else "authors"
+
+
+NOISE_COLUMNS = ("noise", "learner", "protocol", "n_query", "similarity_median", "similarity_median_lo",
+                 "similarity_median_hi", "test_success_mean", "test_success_mean_lo", "test_success_mean_hi")
 
 
 def plot_noise(table: Sequence[dict[str, object]], title: str, stem: Path) -> list[Path]:
@@ -131,15 +177,21 @@ def plot_noise(table: Sequence[dict[str, object]], title: str, stem: Path) -> li
               ("test_success_mean", "robot test executions acceptable (share, 95% CI)"))
     for ax, (metric, label) in zip(axes, panels, strict=True):
         for protocol in PROTOCOLS:
-            mine = [r for r in table if r["protocol"] == protocol]
-            x = np.array([r["noise"] for r in mine], dtype=float)
-            y = np.array([r[metric] for r in mine], dtype=float)
-            err = [y - np.array([r[f"{metric}_lo"] for r in mine]), np.array([r[f"{metric}_hi"] for r in mine]) - y]
-            ax.errorbar(x, y, yerr=err, marker="o", capsize=3, color=COLORS[protocol], label=LABELS[protocol])
+            for learner, style in (("authors", "-"), ("noise-aware", "--")):
+                mine = [r for r in table if r["protocol"] == protocol and r["learner"] == learner]
+                if not mine or (learner == "noise-aware" and protocol == "batch"):  # Batch sees no verdicts
+                    continue
+                x = np.array([r["noise"] for r in mine], dtype=float)
+                y = np.array([r[metric] for r in mine], dtype=float)
+                err = [y - np.array([r[f"{metric}_lo"] for r in mine]),
+                       np.array([r[f"{metric}_hi"] for r in mine]) - y]
+                name = LABELS[protocol] + (", noise-aware learner" if learner == "noise-aware" else "")
+                ax.errorbar(x, y, yerr=err, marker="o" if learner == "authors" else "s", capsize=3, linestyle=style,
+                            color=COLORS[protocol], label=name)
         ax.set_xlabel("probability that the teacher flips a verdict (--noise)")
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
-    axes[0].legend()
+    axes[0].legend(fontsize=8)
     fig.suptitle(title, fontsize=9)
     return _save(fig, stem)
 
@@ -157,6 +209,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     noise.add_argument("folders", nargs="+")
     noise.add_argument("--n-query", type=int, required=True)
     noise.add_argument("--out", required=True)
+    paired = sub.add_parser("paired", help="B minus A, paired by run, for two sweeps of the same runs that "
+                                           "differ in a learner setting")
+    paired.add_argument("a")
+    paired.add_argument("b")
+    paired.add_argument("--label", default="B - A", help="what the difference is, for the figure")
+    paired.add_argument("--protocol", action="append", choices=list(PROTOCOLS),
+                        help="only this protocol (repeatable; default all)")
+    paired.add_argument("--out", required=True)
     args = parser.parse_args(argv)
     out = Path(args.out)
     try:
@@ -169,11 +229,22 @@ def main(argv: Sequence[str] | None = None) -> int:
             title = (f"User study in simulation: dinner table, 2 demonstrations + {n_query} queries, prior "
                      f"{s1['prior']}, {s1['demo_mode']} demonstrations, {s1['runs']} runs per task")
             plot_study(curves, title, out / "user_study")
+        elif args.what == "paired":
+            from .paired_sweeps import PAIRED_SWEEP_COLUMNS, paired_sweep_differences, plot_paired_sweeps
+            from .settings import ExperimentSettings
+
+            (sa, ra), (sb, rb) = read_sweep(args.a), read_sweep(args.b)
+            a, b = ExperimentSettings.from_json(sa), ExperimentSettings.from_json(sb)
+            table = paired_sweep_differences(a, ra, b, rb, args.protocol or PROTOCOLS)
+            write_csv(out / "paired_sweeps.csv", table, PAIRED_SWEEP_COLUMNS)
+            title = f"{args.label}: {a.domain}, {min(a.runs, b.runs)} paired runs, seed {a.seed}"
+            plot_paired_sweeps(table, args.label, title, out / "paired_sweeps")
         else:
             table = noise_table(args.folders, args.n_query)
             write_csv(out / "noise.csv", table, NOISE_COLUMNS)
-            settings, _ = read_sweep(args.folders[0])
-            title = (f"Fallible teacher: {settings['domain']}, n_query {args.n_query}, {settings['runs']} runs, "
+            settings = read_settings(args.folders[0])
+            runs = "/".join(sorted({str(read_settings(f)["runs"]) for f in args.folders}, key=int))
+            title = (f"Fallible teacher: {settings['domain']}, n_query {args.n_query}, {runs} runs, "
                      f"{settings['demo_mode']} demonstrations (demonstrations are never noisy)")
             plot_noise(table, title, out / "noise")
     except ValueError as exc:

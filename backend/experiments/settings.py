@@ -7,10 +7,11 @@ import re
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from ..core.belief import check_flip_rate
 from ..core.domain import DINNER_TASK_FORMULAS
 from ..core.priors import DEFAULT_PRIOR, NAMED_PRIORS
 from ..core.metrics import DEFAULT_METRIC, SIMILARITY_METRICS
-from ..core.queries import DEFAULT_QUERY_TIES, QUERY_TIES
+from ..core.queries import ACTIVE_STRATEGIES, DEFAULT_ACTIVE_STRATEGY, DEFAULT_QUERY_TIES, QUERY_TIES
 from ..core.teachers import DEFAULT_DEMO_MODE, DEMO_MODES
 
 N_DEMONSTRATIONS = 2  # the paper's protocols all start from two demonstrations
@@ -44,8 +45,10 @@ class ExperimentSettings:
     truth_sampler: str = "prior"
     demo_mode: str = DEFAULT_DEMO_MODE
     noise: float = 0.0
+    learner_flip_rate: float = 0.0
     similarity: str = DEFAULT_METRIC
     query_ties: str = DEFAULT_QUERY_TIES
+    active_strategy: str = DEFAULT_ACTIVE_STRATEGY
     test_success: bool = False
     n_demonstrations: int = field(default=N_DEMONSTRATIONS)
     n_waypoints: int = SIZE_DEFAULTS["n_waypoints"]
@@ -81,10 +84,14 @@ class ExperimentSettings:
         if self.query_ties not in QUERY_TIES:
             raise ValueError(f"unknown query tie-breaking {self.query_ties!r}; expected one of {', '.join(QUERY_TIES)}")
         self._check_size()
+        if self.active_strategy not in ACTIVE_STRATEGIES:
+            raise ValueError(f"unknown active query strategy {self.active_strategy!r}; "
+                             f"expected one of {', '.join(ACTIVE_STRATEGIES)}")
         if not isinstance(self.test_success, bool):
             raise ValueError(f"test_success must be true or false, got {self.test_success!r}")
         if isinstance(self.noise, bool) or not isinstance(self.noise, (int, float)) or not 0.0 <= self.noise <= 1.0:
             raise ValueError(f"noise must be a probability in [0, 1], got {self.noise!r}")
+        check_flip_rate(self.learner_flip_rate, "learner_flip_rate")
 
     def _check_size(self) -> None:
         """The synthetic domain's size: 2 to 5 waypoints, threats while the space stays enumerable."""

@@ -23,7 +23,7 @@ import numpy as np
 from ..core.belief import Belief
 from ..core.domain import synthetic_domain
 from ..core.hypotheses import HypothesisSpace, build_space, get_space
-from ..core.queries import Execution, active_query, plan_execution, random_query
+from ..core.queries import Execution, active_query, information_gain_query, plan_execution, random_query
 from ..core.teachers import SimulatedTeacher, authors_ground_truth, sample_ground_truth
 from ..core.session import PROTOCOLS
 from .settings import ExperimentSettings
@@ -127,14 +127,16 @@ def _protocol_steps(
             result = _step_result("demonstration", belief, truth, seconds, settings.similarity)
             out.append(replace(result, test_success=tester(belief, first + k, protocol)))
             continue
-        if protocol == "active":
+        if protocol == "active" and settings.active_strategy == "information-gain":
+            execution, _ = information_gain_query(belief, learner_rng, settings.learner_flip_rate)
+        elif protocol == "active":
             execution, _ = active_query(belief, learner_rng, settings.query_ties)
         else:
             execution, _ = random_query(belief, learner_rng)
         chosen = time.perf_counter()
         verdict = teacher.assess(execution.trace, teacher_rng)
         updating = time.perf_counter()
-        belief = belief.observe(execution.trace, verdict)
+        belief = belief.observe(execution.trace, verdict, settings.learner_flip_rate)
         seconds = (chosen - started) + (time.perf_counter() - updating)
         result = _step_result("query", belief, truth, seconds, settings.similarity)
         out.append(replace(result, test_success=tester(belief, first + k, protocol)))

@@ -170,6 +170,10 @@ class OutputFolder:
             raise ValueError(f"{self.config_json} is not a sweep config this command wrote ({exc}); "
                              "expected a new folder or one this command wrote") from None
         current = self.settings.to_json()
+        try:  # a folder written before a setting existed holds that setting's default
+            stored = ExperimentSettings.from_json(stored).to_json()
+        except ValueError:
+            pass
         differences = [
             f"{key}: {stored.get(key)!r} there, {current.get(key)!r} now"
             for key in sorted(set(stored) | set(current))

@@ -39,6 +39,30 @@ def bootstrap_ci(
     return float(fn(values)), float(low), float(high)
 
 
+def weighted_statistic(groups: Sequence[np.ndarray], shares: Sequence[float], statistic: str) -> float:
+    """A statistic of pooled groups in which group g carries the share shares[g] of the weight, whatever its size."""
+    values = np.concatenate(groups)
+    weights = np.concatenate([np.full(g.size, w / g.size) for g, w in zip(groups, shares, strict=True)])
+    if statistic == "mean":
+        return float(values @ weights / weights.sum())
+    order = np.argsort(values, kind="stable")
+    cumulative = np.cumsum(weights[order]) / weights.sum()
+    return float(values[order][np.searchsorted(cumulative, 0.5)])  # the lower weighted median
+
+
+def weighted_bootstrap_ci(groups: Sequence[np.ndarray], shares: Sequence[float], statistic: str,
+                          rng: np.random.Generator, n_resamples: int = N_BOOTSTRAP) -> tuple[float, float, float]:
+    """(estimate, low, high) of ``weighted_statistic``, with a 95% bootstrap CI that resamples within each group."""
+    groups = [np.asarray(g, dtype=np.float64) for g in groups]
+    if any(g.size == 0 for g in groups):
+        return float("nan"), float("nan"), float("nan")
+    resampled = [weighted_statistic([g[rng.integers(0, g.size, g.size)] for g in groups], shares, statistic)
+                 for _ in range(n_resamples)]
+    alpha = (1.0 - CONFIDENCE) / 2.0
+    low, high = np.quantile(resampled, [alpha, 1.0 - alpha])
+    return weighted_statistic(groups, shares, statistic), float(low), float(high)
+
+
 def group_rng(seed: int, *key: int) -> np.random.Generator:
     """The bootstrap generator of one group, independent of the order groups are summarised in."""
     return np.random.default_rng([seed, _BOOTSTRAP_STREAM, *key])

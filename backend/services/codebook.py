@@ -99,6 +99,13 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         **{f"top{i}_formula": ("text", f"the {i}. most probable formula", "") for i in range(1, 6)},
         **{f"top{i}_p": ("number", f"probability of the {i}. most probable formula", "probability 0-1")
            for i in range(1, 6)},
+        "p_verdict": ("number", "teacher consistency of a query step: the probability the belief just before it "
+                      "gave to the verdict the participant gave (empty for the prior and demonstrations)",
+                      "probability 0-1"),
+        "consistency_score": ("number", "the participant's consistency in this task: the mean probability of all "
+                              "their verdicts, queries and tests (tests against the final belief), each just before "
+                              "it was given; the same on every row of the task (empty without verdicts)",
+                              "probability 0-1"),
     },
     "questionnaire": {
         "item_id": ("text", "the questionnaire item's id (rows below describe each item)", ""),

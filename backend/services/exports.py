@@ -8,6 +8,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from ..core import session as core
+from ..core.consistency import consistency_score, session_verdict_probabilities
 from ..db import repository as repo
 from ..db.tables import StudyRow
 from ..errors import NotFound
@@ -43,7 +44,7 @@ EVENT_COLUMNS = [
 BELIEF_COLUMNS = [
     "participant_id", "condition", "task_index", "task", "step", "record_kind", "acceptable", "trace", "entropy",
     "map_formula", "map_description", "similarity", "map_similarity",
-] + [f"top{i}_{part}" for i in range(1, 6) for part in ("formula", "p")]
+] + [f"top{i}_{part}" for i in range(1, 6) for part in ("formula", "p")] + ["p_verdict", "consistency_score"]
 
 
 QUESTIONNAIRE_COLUMNS = ["participant_id", "condition", "item_id", "item_kind", "item_text", "answer",
@@ -144,6 +145,8 @@ def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[
         task = study.tasks[ts.task_index]
         data = core.learning_data(state)
         records: list[core.Record | None] = [None, *state.learning_records]
+        learning, tests = session_verdict_probabilities(state)  # teacher consistency (core.consistency)
+        p_verdicts, score = [None, *learning], consistency_score([*learning, *tests])
         for step, record in enumerate(records):
             view = belief_view(state.config.task, state.config.prior, data[:step], task.get("ground_truth"), 5)
             cells: list[Any] = []
@@ -154,4 +157,4 @@ def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[
                    None if record is None else record.kind, None if record is None else record.acceptable,
                    None if record is None else _json([sorted(x) for x in record.trace]),
                    view["entropy"], view["map_formula"], view["map_description"], view["similarity"],
-                   view["map_similarity"], *cells]
+                   view["map_similarity"], *cells, p_verdicts[step], score]

@@ -35,6 +35,9 @@ def test_command_runs_a_sweep_and_prints_what_it_did(reference, tmp_path, capsys
     (["--domain", "synthetic", "--workers", "0"], "workers must be a whole number >= 1, got 0"),
     (["--domain", "dinner-task1", "--truth-sampler", "authors"], "ground truth is fixed"),
     (["--domain", "synthetic", "--prior", "uniform"], "invalid choice: 'uniform'"),
+    (["--domain", "synthetic", "--learner-flip-rate", "0.5"], "learner_flip_rate must be a probability in [0, 0.5)"),
+    (["--domain", "synthetic", "--flip-rate", "-0.1"], "learner_flip_rate must be a probability in [0, 0.5)"),
+    (["--domain", "synthetic", "--active-strategy", "entropy"], "invalid choice: 'entropy'"),
 ])
 def test_bad_settings_are_one_line_errors_before_any_work(tmp_path, capsys, args, message):
     out = tmp_path / "sweep"

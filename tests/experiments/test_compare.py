@@ -4,7 +4,10 @@ import csv
 
 import pytest
 
-from tableteach.experiments.compare import PAPER_STUDY_MEDIANS, main
+import numpy as np
+
+from tableteach.experiments.compare import STUDY_TASKS, main
+from tableteach.experiments.summary import weighted_bootstrap_ci, weighted_statistic
 from tableteach.experiments.settings import ExperimentSettings
 from tableteach.experiments.sweep import run_sweep
 
@@ -25,11 +28,16 @@ def test_user_study_curves_cover_both_tasks_from_the_last_demonstration(tmp_path
     task2 = sweep(tmp_path, "t2", domain="dinner-task2", truth_sampler="fixed")
     assert main(["user-study", "--task1", str(task1), "--task2", str(task2), "--out", str(tmp_path / "study")]) == 0
     rows = read(tmp_path / "study" / "user_study.csv")
-    assert {(r["task"], r["protocol"]) for r in rows} == {(t, p) for t in PAPER_STUDY_MEDIANS
+    assert {(r["task"], r["protocol"]) for r in rows} == {(t, p) for t in STUDY_TASKS
                                                           for p in ("active", "random", "batch")}
     assert sorted({int(r["n_executions"]) for r in rows}) == [2, 3, 4, 5]
     both = {int(r["n_executions"]): r for r in rows if r["task"] == "both" and r["protocol"] == "active"}
     assert all(int(r["runs"]) == 6 for r in both.values())  # the two tasks pooled
+    final = {(r["task"], r["protocol"]): float(r["similarity_median"]) for r in rows if r["n_executions"] == "5"}
+    finals = [[float(r["similarity"]) for r in read(folder / "runs.csv")
+               if r["protocol"] == "active" and r["n_executions"] == "5"] for folder in (task1, task2)]
+    expanded = sorted(finals[0] * 7 + finals[1] * 2)  # 3 runs each: 21:6 is 7 copies of a Task 1 run to 2
+    assert final[("both-paper", "active")] == pytest.approx(expanded[13], abs=1e-4)  # the 14th of 27
     for r in rows:
         assert float(r["similarity_median_lo"]) <= float(r["similarity_median"]) <= float(r["similarity_median_hi"])
     assert (tmp_path / "study" / "user_study.png").read_bytes()[:4] == b"\x89PNG"
@@ -63,3 +71,48 @@ def test_compare_refuses_what_it_cannot_use(tmp_path, capsys):
 def test_compare_needs_its_arguments(argv):
     with pytest.raises(SystemExit):
         main(argv)
+
+
+def test_noise_table_puts_the_noise_aware_learner_beside_the_authors(tmp_path):
+    folders = [sweep(tmp_path, "plain", domain="dinner-random", noise=0.2),
+               sweep(tmp_path, "aware", domain="dinner-random", noise=0.2, learner_flip_rate=0.2)]
+    assert main(["noise", *map(str, folders), "--n-query", "3", "--out", str(tmp_path / "noise")]) == 0
+    rows = read(tmp_path / "noise" / "noise.csv")
+    assert {(r["learner"], r["protocol"]) for r in rows} == {(learner, p) for learner in ("authors", "noise-aware")
+                                                             for p in ("active", "random", "batch")}
+    batch = {r["learner"]: r["similarity_median"] for r in rows if r["protocol"] == "batch"}
+    assert batch["authors"] == batch["noise-aware"]  # Batch sees no verdicts, so the learners agree on it
+
+
+def test_paired_sweeps_subtract_run_by_run(tmp_path):
+    base = sweep(tmp_path, "base", domain="dinner-random")
+    eig = sweep(tmp_path, "eig", domain="dinner-random", active_strategy="information-gain")
+    assert main(["paired", str(base), str(eig), "--label", "EIG - US", "--out", str(tmp_path / "p")]) == 0
+    rows = {r["protocol"]: r for r in read(tmp_path / "p" / "paired_sweeps.csv")}
+    assert set(rows) == {"active", "random", "batch"}
+    for protocol in ("random", "batch"):  # only Active's queries changed
+        assert float(rows[protocol]["diff_mean"]) == 0.0 and float(rows[protocol]["share_equal"]) == 1.0
+    finals = {}
+    for name in ("base", "eig"):
+        finals[name] = sorted((int(r["run"]), float(r["similarity"])) for r in read(tmp_path / name / "runs.csv")
+                              if r["protocol"] == "active" and r["n_executions"] == "5")
+    diffs = [b[1] - a[1] for a, b in zip(finals["base"], finals["eig"], strict=True)]
+    assert float(rows["active"]["diff_mean"]) == pytest.approx(sum(diffs) / len(diffs), abs=1e-3)
+    assert (tmp_path / "p" / "paired_sweeps.svg").exists()
+
+
+def test_paired_sweeps_refuse_sweeps_of_other_runs(tmp_path, capsys):
+    a = sweep(tmp_path, "a", domain="dinner-random")
+    b = sweep(tmp_path, "b", domain="dinner-random", seed=1)
+    assert main(["paired", str(a), str(b), "--out", str(tmp_path / "p")]) == 2
+    assert "do not share their runs (seed: 0 vs 1)" in capsys.readouterr().err
+
+
+def test_weighted_pooling_gives_each_group_its_share_whatever_its_size():
+    low, high = np.zeros(200), np.ones(10)
+    assert weighted_statistic([low, high], [21, 6], "median") == 0.0
+    assert weighted_statistic([low, high], [6, 21], "median") == 1.0
+    assert weighted_statistic([low, high], [21, 6], "mean") == pytest.approx(6 / 27)
+    est, lo, hi = weighted_bootstrap_ci([np.arange(100.0), np.arange(100.0) + 1000], [3, 1], "median",
+                                        np.random.default_rng(0), n_resamples=200)
+    assert lo <= est <= hi and est == pytest.approx(66, abs=1)  # the 2/3 point of the first group

@@ -1,0 +1,64 @@
+"""Teacher consistency: how probable the learner found each verdict just before it was given.
+
+For a verdict on an execution, the probability the belief built from the teacher's own demonstrations
+and earlier verdicts gave to that verdict (P(acceptable) for an accept, 1 - P(acceptable) for a reject).
+A teacher's score is the mean over their verdicts: a perfect teacher's verdicts agree with what their
+demonstrations implied, a teacher who flips verdicts gives improbable ones more often.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+
+from . import session as core
+from .belief import Belief
+from .ltl_semantics import Trace
+
+Labelled = tuple[Trace, bool, bool]  # (trace, acceptable, is_verdict)
+
+
+def verdict_probabilities(prior: Belief, data: Sequence[Labelled], flip_rate: float = 0.0) -> list[float | None]:
+    """Per item: the probability the belief just before it gave to its verdict (None for a demonstration)."""
+    belief = prior
+    out: list[float | None] = []
+    for trace, acceptable, is_verdict in data:
+        if is_verdict:
+            p = belief.p_acceptable(trace)
+            out.append(p if acceptable else 1.0 - p)
+        else:
+            out.append(None)
+        belief = belief.observe(trace, acceptable, flip_rate if is_verdict else 0.0)
+    return out
+
+
+def session_verdict_probabilities(state: core.SessionState) -> tuple[list[float | None], list[float]]:
+    """A session's verdict probabilities: per learning record (None for a demonstration), then per assessed test
+    (against the final belief, which tests do not change)."""
+    beliefs = core.beliefs_by_step(state)
+    learning = [None if r.kind != "query" else _p_verdict(beliefs[k], r.trace, bool(r.acceptable))
+                for k, r in enumerate(state.learning_records)]
+    tests = [_p_verdict(beliefs[-1], r.trace, r.acceptable) for r in state.records
+             if r.kind == "test" and r.acceptable is not None]
+    return learning, tests
+
+
+def _p_verdict(belief: Belief, trace: Trace, acceptable: bool) -> float:
+    p = belief.p_acceptable(trace)
+    return p if acceptable else 1.0 - p
+
+
+def consistency_score(probabilities: Sequence[float | None]) -> float | None:
+    """A teacher's consistency: the mean probability of their verdicts (None without any verdict)."""
+    values = [p for p in probabilities if p is not None]
+    return float(np.mean(values)) if values else None
+
+
+def auc(positives: Sequence[float], negatives: Sequence[float]) -> float:
+    """Area under the ROC curve: P(a positive scores above a negative), ties counting one half."""
+    pos, neg = np.asarray(positives, dtype=float), np.asarray(negatives, dtype=float)
+    if pos.size == 0 or neg.size == 0:
+        raise ValueError("the AUC needs at least one score in each group")
+    above = (pos[:, None] > neg[None, :]).sum() + 0.5 * (pos[:, None] == neg[None, :]).sum()
+    return float(above / (pos.size * neg.size))
