@@ -41,7 +41,12 @@ class RestartableServer(ServerProcess):
 
 def _view_pixels(page) -> np.ndarray:
     """The 3D view as grey pixels (the embedded viewer frame only)."""
-    box = page.locator("#viewer-frame").bounding_box()
+    frame = page.locator("#viewer-frame")
+    frame.wait_for(state="visible", timeout=WAIT_MS)
+    frame.scroll_into_view_if_needed(timeout=WAIT_MS)
+    page.wait_for_function("() => { const r = document.querySelector('#viewer-frame')?.getBoundingClientRect();"
+                           " return r && r.width > 10 && r.height > 10; }", timeout=WAIT_MS)
+    box = frame.bounding_box()
     assert box is not None, "the page shows no 3D view"
     shot = page.screenshot(clip=box, animations="disabled", timeout=WAIT_MS)
     return np.asarray(Image.open(io.BytesIO(shot)).convert("L"), dtype=float)

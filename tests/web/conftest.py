@@ -152,7 +152,9 @@ def in_process_app(tmp_path: Path, robot: Any = None) -> Iterator[Any]:
     settings = Settings(database_url=f"sqlite:///{tmp_path / 'app.db'}", experimenter_token=EXPERIMENTER_TOKEN,
                         robot="trace", data_dir=tmp_path / "data", joins_per_address=100_000)
     upgrade_head(settings.database_url)
-    context = None if robot is None else Context.from_settings(settings, robot)
+    from tableteach.web.robots import make_recording_store
+
+    context = None if robot is None else Context.from_settings(settings, robot, make_recording_store(settings))
     app = create_app(settings, context=context)
     with TestClient(app) as client:
         client.ctx = app.state.context  # type: ignore[attr-defined]

@@ -283,7 +283,9 @@ def _app(tmp_path: Path, name: str, data_dir: Path, robot: Any = None) -> Any:
     settings = Settings(database_url=f"sqlite:///{tmp_path / name}", experimenter_token=EXPERIMENTER_TOKEN,
                         robot="trace", data_dir=data_dir)
     upgrade_head(settings.database_url)
-    app = create_app(settings, context=Context.from_settings(settings, robot))
+    from tableteach.web.robots import make_recording_store
+
+    app = create_app(settings, context=Context.from_settings(settings, robot, make_recording_store(settings)))
     client = TestClient(app)
     client.ctx = app.state.context
     return client
