@@ -9,6 +9,8 @@ from typing import Any
 from tableteach.core import session as core
 from tableteach.services.planning import PLANNER_THREAD, Planner, step_of
 
+from tests.waiting import wait_until
+
 from .helpers import bearer, demonstrate, make_study, to_teaching
 
 
@@ -109,9 +111,7 @@ def test_the_server_plans_the_query_while_the_participant_reads_and_the_executio
     assert state["step"]["kind"] == "demonstration"
     state = demonstrate(app_client, token, ["dinner_plate", "small_plate"])
     assert state["step"]["kind"] == "query" and state["execution"]["status"] == "not_started"
-    deadline = time.monotonic() + 10
-    while not plan.calls and time.monotonic() < deadline:
-        time.sleep(0.01)
+    wait_until(lambda: plan.calls, "the planner to start planning the query ahead")
     assert len(plan.calls) == 1 and plan.calls[0][1].startswith(PLANNER_THREAD)
     response = app_client.post("/api/v1/me/execution", headers=bearer(token))
     assert response.status_code == 200, response.text
