@@ -99,11 +99,13 @@ class LiveServer:
         """Serve and wait until it listens."""
         import time
 
+        from tests.web.conftest import START_SECONDS
+
         self.thread.start()
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + START_SECONDS
         while not self.server.started:
             if time.monotonic() > deadline or not self.thread.is_alive():
-                raise RuntimeError("the live server did not start within 30 s")
+                raise RuntimeError(f"the live server did not start within {START_SECONDS:.0f} s")
             time.sleep(0.05)
         return self
 

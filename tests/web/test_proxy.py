@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import shutil
 import subprocess
-import time
 from collections import Counter
 from pathlib import Path
 
@@ -16,6 +15,8 @@ import httpx
 import pytest
 
 from tableteach.client import ParticipantClient, run_teacher
+
+from tests.waiting import wait_until
 
 from ..conftest import REPO
 from .conftest import ServerProcess, free_port, open_study, study_spec
@@ -43,6 +44,14 @@ def _render(servers: list[ServerProcess], port: int, folder: Path) -> Path:
     return conf
 
 
+def _healthy(base: str) -> bool:
+    """Whether /healthz answers 200 through the proxy (False while nothing listens yet)."""
+    try:
+        return httpx.get(f"{base}/healthz", timeout=5).status_code == 200
+    except httpx.TransportError:
+        return False
+
+
 def _count(served: Counter[str], response: httpx.Response) -> None:
     """Count which upstream answered a participant's request (the join has no token yet, so it is spread)."""
     if "authorization" in response.request.headers:
@@ -60,15 +69,7 @@ def test_a_participant_sticks_to_one_process_and_moves_when_it_dies(postgres_url
     proxy = subprocess.Popen([NGINX, "-c", str(conf), "-p", str(tmp_path), "-g", "daemon off;"])
     base = f"http://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + 10
-        while True:
-            try:
-                if httpx.get(f"{base}/healthz", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert time.monotonic() < deadline, "nginx did not answer"
-            time.sleep(0.1)
+        wait_until(lambda: _healthy(base), "nginx to answer /healthz", interval=0.1)
         study_id = open_study(base, study_spec(["active"]))
         upstreams: list[Counter[str]] = []
         tokens = []
