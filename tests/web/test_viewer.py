@@ -147,7 +147,7 @@ def test_a_rest_session_with_the_mujoco_robot_records_every_step(mujoco_client):
 def test_an_unwatched_view_is_stopped_after_the_idle_timeout(tmp_path):
     from tableteach.sim.robot import MujocoRobot
 
-    robot = MujocoRobot(data_dir=tmp_path, idle_seconds=0.3)
+    robot = MujocoRobot(data_dir=tmp_path, idle_seconds=5.0)  # not gone before the check that it opened
     try:
         port = robot.open_view("7/0", on_click=None)
         assert robot.scene("7/0")[1] is not None
