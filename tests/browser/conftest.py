@@ -22,7 +22,7 @@ CHROMIUM_ARGS = [
     "--disable-sync",
 ]
 VIEWPORT = {"width": 640, "height": 400}
-TIMEOUT_MS = 60_000  # software WebGL renders a few frames per second
+TIMEOUT_MS = 120_000  # software WebGL renders a few frames per second, far fewer on a loaded machine
 
 
 @contextmanager
