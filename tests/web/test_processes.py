@@ -22,6 +22,7 @@ from .test_postgres import postgres_url  # noqa: F401 - the module's throwaway P
 
 pytestmark = pytest.mark.slow
 SECONDS_PER_OBJECT = 1.0  # long enough that the motion is still under way when the test looks at it
+MUJOCO_WAIT_SECONDS = 420.0  # the MuJoCo robot's worker has 120 s, a second try, then the server works it out
 
 
 class RoundRobin(httpx.BaseTransport):
@@ -141,7 +142,8 @@ def test_with_the_mujoco_robot_another_process_finishes_the_execution_and_serves
         started = httpx.post(f"{a.url}/api/v1/me/execution", headers=headers, timeout=60).json()
         assert started["execution"]["status"] == "running"
         wait_until(lambda: httpx.get(f"{b.url}/api/v1/me/robot", headers=headers, timeout=60).json()[
-            "caption"].startswith("The robot is placing"), "a to work the execution out", interval=0.1)
+            "caption"].startswith("The robot is placing"), "a to work the execution out", timeout=MUJOCO_WAIT_SECONDS,
+            interval=0.1)
         a.kill()  # mid-motion: a worked the execution out and started it
 
         view = httpx.post(f"{b.url}/api/v1/me/view", headers=headers).json()
@@ -149,7 +151,8 @@ def test_with_the_mujoco_robot_another_process_finishes_the_execution_and_serves
         recording = httpx.get(f"{b.url}/p/{partial.token}/motion/task-0/query-0.viser", timeout=60)
         assert recording.status_code == 200 and len(recording.content) > 10_000
         state = wait_until(lambda: (s := httpx.get(f"{b.url}/api/v1/me", headers=headers, timeout=60).json())[
-            "execution"]["status"] == "finished" and s, "b to finish the execution after a died", interval=0.1)
+            "execution"]["status"] == "finished" and s, "b to finish the execution after a died",
+            timeout=MUJOCO_WAIT_SECONDS, interval=0.1)
         assert state["execution"]["events"] == started["execution"]["events"]
         api = ParticipantClient(b.url, token=partial.token)
         assert run_teacher(b.url, study_id, ["task1"], seed=3, client=api).completion_code
