@@ -27,6 +27,9 @@ set +e
 echo "==> ruff check (lint; settings in pyproject.toml)"
 "$VENV/bin/ruff" check .
 lint=$?
+echo "==> mypy (static types of backend/; settings in pyproject.toml)"
+"$VENV/bin/mypy"
+types=$?
 "$VENV/bin/python" -m pytest "$@"
 status=$?
 set -e
@@ -36,6 +39,10 @@ if [ "$status" = 5 ]; then
 fi
 if [ "$lint" != 0 ] && [ "$status" = 0 ]; then
   echo "error: the tests passed but ruff found problems (above)" >&2
+  exit 1
+fi
+if [ "$types" != 0 ] && [ "$status" = 0 ]; then
+  echo "error: the tests passed but mypy found type errors (above)" >&2
   exit 1
 fi
 exit "$status"

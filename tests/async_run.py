@@ -10,7 +10,9 @@ from typing import TypeVar
 T = TypeVar("T")
 
 
-def run_scenario(scenario: Callable[[], Awaitable[T]], timeout: float = 30.0) -> T:
-    """asyncio.run(scenario()) in a thread of its own (a browser test may leave a loop running in this one)."""
+def run_scenario(scenario: Callable[[], Awaitable[T]], timeout: float = 300.0) -> T:
+    """asyncio.run(scenario()) in a thread of its own (a browser test may leave a loop running in this one).
+
+    The limit is a last resort beyond the scenario's own waits (tests.waiting.WAIT_SECONDS)."""
     with ThreadPoolExecutor(max_workers=1) as pool:
         return pool.submit(lambda: asyncio.run(scenario())).result(timeout)  # type: ignore[arg-type]

@@ -22,7 +22,7 @@ CHROMIUM_ARGS = [
     "--disable-sync",
 ]
 VIEWPORT = {"width": 640, "height": 400}
-TIMEOUT_MS = 60_000  # software WebGL renders a few frames per second
+TIMEOUT_MS = 120_000  # software WebGL renders a few frames per second, far fewer on a loaded machine
 
 
 @contextmanager
@@ -99,11 +99,13 @@ class LiveServer:
         """Serve and wait until it listens."""
         import time
 
+        from tests.web.conftest import START_SECONDS
+
         self.thread.start()
-        deadline = time.monotonic() + 30
+        deadline = time.monotonic() + START_SECONDS
         while not self.server.started:
             if time.monotonic() > deadline or not self.thread.is_alive():
-                raise RuntimeError("the live server did not start within 30 s")
+                raise RuntimeError(f"the live server did not start within {START_SECONDS:.0f} s")
             time.sleep(0.05)
         return self
 

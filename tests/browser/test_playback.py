@@ -12,9 +12,12 @@ import pytest
 from PIL import Image
 
 from tests.browser.conftest import LiveServer
+from tests.waiting import wait_until
 from tests.web.conftest import open_study, study_spec
 
 pytestmark = pytest.mark.browser
+STILL_SECONDS = 2.0  # two screenshots this far apart that do not differ: the scene holds still
+NEXT_FRAMES = "() => new Promise(done => requestAnimationFrame(() => requestAnimationFrame(done)))"
 
 
 def _shot(page) -> np.ndarray:
@@ -64,28 +67,34 @@ def test_the_browser_plays_the_recorded_execution_then_holds_the_final_table(bro
         page.goto(f"{server.url}{view['url']}")
     assert recording.value.status == 200 and len(recording.value.body()) > 10_000
     page.wait_for_selector("canvas")
-    time.sleep(1.0)  # software WebGL: the first frames
+    # drawn: not one uniform colour any more
+    wait_until(lambda: (shot := _shot(page)).max() > shot.min(), "software WebGL to draw the scene", interval=0.5)
     first = _shot(page)
-    time.sleep(1.0)
-    assert _changed(first, _shot(page)) > 0.002, "the scene did not move while the recording played"
+    wait_until(lambda: _changed(first, _shot(page)) > 0.002, "the scene to move while the recording plays",
+               interval=0.5)
 
-    state = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()
-    deadline = time.monotonic() + 90
-    while state["execution"]["status"] != "finished":
-        assert time.monotonic() < deadline
-        time.sleep(0.2)
-        state = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()
-    time.sleep(3.0)  # the page started playing a moment after the execution's clock: let it catch up
-    still = _shot(page)
-    time.sleep(2.0)
-    assert _changed(still, _shot(page)) < 0.001, "the finished execution did not hold still"
+    wait_until(lambda: httpx.get(f"{server.url}/api/v1/me", headers=headers, timeout=60).json()["execution"][
+        "status"] == "finished", "the execution to finish", timeout=120, interval=0.2)
+    # The page started playing a moment after the execution's clock: it holds still once it has caught up,
+    # and stays so (it does not start over by itself).
+    shots = [_shot(page)]
+
+    def held_still() -> bool:
+        time.sleep(STILL_SECONDS)
+        shots.append(_shot(page))
+        return _changed(shots[-2], shots[-1]) < 0.001
+
+    wait_until(held_still, "the finished execution to hold still", interval=0)
+    time.sleep(STILL_SECONDS)
+    assert _changed(shots[-1], _shot(page)) < 0.001, "the finished execution started moving again"
 
     # The participant's copy of the player shows no controls: no playback bar (pause, time, speed, scene tree),
     # no control panel, no token, at a laptop's and a phone's size.
     token = joined["state"]["token"]
     for size in ({"width": 1366, "height": 768}, {"width": 390, "height": 844}):
         page.set_viewport_size(size)
-        time.sleep(0.5)
+        page.wait_for_function("w => window.innerWidth === w", arg=size["width"])
+        page.evaluate(NEXT_FRAMES)  # the player's layout has followed the new size
         papers = page.evaluate("() => [...document.querySelectorAll('.mantine-Paper-root')]"
                                ".map(e => e.getClientRects().length > 0)")
         assert papers and not any(papers), f"viser's controls show at {size}: {papers}"

@@ -3,10 +3,11 @@
 import signal
 import subprocess
 import sys
-import time
 
 from tableteach.experiments.settings import ExperimentSettings
 from tableteach.experiments.sweep import run_sweep
+
+from tests.waiting import wait_until
 
 from .conftest import rows_without_seconds
 
@@ -19,11 +20,8 @@ def test_ctrl_c_keeps_finished_runs_and_the_rerun_completes_the_sweep(tmp_path):
     proc = subprocess.Popen([sys.executable, "-m", "tableteach.cli", "experiment", *ARGS, "--out", str(out),
                              "--workers", "2"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     runs_csv = out / "runs.csv"
-    deadline = time.monotonic() + 60
-    while time.monotonic() < deadline:  # wait until at least one run is on disk
-        if runs_csv.exists() and runs_csv.read_text().count("\n") > 1 + 9:
-            break
-        time.sleep(0.02)
+    wait_until(lambda: runs_csv.exists() and runs_csv.read_text().count("\n") > 1 + 9,
+               "the sweep to store ten runs", timeout=120, interval=0.02)
     proc.send_signal(signal.SIGINT)
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == 130, err

@@ -17,6 +17,7 @@ from tableteach.web.viewer import participant_client_html
 
 from .helpers import EXP, bearer, demonstrate, make_study, to_teaching
 from tests.async_run import run_scenario
+from tests.waiting import WAIT_SECONDS
 
 
 
@@ -29,7 +30,8 @@ def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise()
         quiet = await notifier.wait(7, 0, timeout=0.05)
         timer = threading.Timer(0.05, notifier.publish, args=(7,))
         timer.start()
-        woken = await asyncio.wait_for(notifier.wait(7, 0, timeout=5.0), 2.0)
+        # Its own time-out is far off: only the publish can end this wait (within a generous limit).
+        woken = await asyncio.wait_for(notifier.wait(7, 0, timeout=3600.0), WAIT_SECONDS)
         notifier.publish(8)  # another participant's change does not count for 7
         other = await notifier.wait(7, woken, timeout=0.05)
         return quiet, woken, other
@@ -51,7 +53,7 @@ def test_the_event_stream_sends_the_counter_then_each_change() -> None:
         events = stream(feeds, *opened)
         first = await anext(events)
         asyncio.get_running_loop().call_later(0.05, notifier.publish, 3)
-        second = await asyncio.wait_for(anext(events), 5.0)
+        second = await asyncio.wait_for(anext(events), WAIT_SECONDS)
         await events.aclose()
         assert feeds.feed(3) is None  # the last stream closed: the feed stopped
         return [first, second]

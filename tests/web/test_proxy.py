@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import shutil
 import subprocess
-import time
 from collections import Counter
 from pathlib import Path
 
@@ -19,6 +18,8 @@ import httpx
 import pytest
 
 from tableteach.client import ParticipantClient, run_teacher
+
+from tests.waiting import wait_until
 
 from ..conftest import REPO
 from .conftest import ServerProcess, free_port, open_study, study_spec
@@ -65,6 +66,14 @@ def _render(servers: list[ServerProcess], port: int, folder: Path, http_port: in
     return conf
 
 
+def _healthy(base: str) -> bool:
+    """Whether /healthz answers 200 through the proxy (False while nothing listens yet)."""
+    try:
+        return httpx.get(f"{base}/healthz", timeout=5).status_code == 200
+    except httpx.TransportError:
+        return False
+
+
 def _count(served: Counter[str], response: httpx.Response) -> None:
     """Count which upstream answered a participant's request (the join has no token yet, so it is spread)."""
     if "authorization" in response.request.headers:
@@ -85,15 +94,7 @@ def test_a_participant_sticks_to_one_process_and_moves_when_it_dies(
     monkeypatch.setenv("SSL_CERT_FILE", str(tmp_path / "fullchain.pem"))  # httpx trusts the test's certificate
     base = f"https://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + 10
-        while True:
-            try:
-                if httpx.get(f"{base}/healthz", timeout=1).status_code == 200:
-                    break
-            except httpx.TransportError:
-                pass
-            assert time.monotonic() < deadline, "nginx did not answer"
-            time.sleep(0.1)
+        wait_until(lambda: _healthy(base), "nginx to answer /healthz", interval=0.1)
         study_id = open_study(base, study_spec(["active"]))
         upstreams: list[Counter[str]] = []
         tokens = []
@@ -144,14 +145,14 @@ def test_the_proxy_terminates_tls_redirects_http_and_sends_hsts(
     monkeypatch.setenv("SSL_CERT_FILE", str(tmp_path / "fullchain.pem"))
     base = f"https://127.0.0.1:{port}"
     try:
-        deadline = time.monotonic() + 10
-        while True:
+        def answers() -> bool:
             try:
-                health = httpx.get(f"{base}/healthz", timeout=1)
-                break
+                return httpx.get(f"{base}/healthz", timeout=5).status_code > 0
             except httpx.TransportError:
-                assert time.monotonic() < deadline, "nginx did not answer"
-                time.sleep(0.1)
+                return False
+
+        wait_until(answers, "nginx to answer over TLS")
+        health = httpx.get(f"{base}/healthz", timeout=30)
         assert health.status_code == 200 and health.json()["status"] == "ok"
         assert health.headers["strict-transport-security"] == "max-age=31536000"
         # Every plain-HTTP address redirects to the same path over https.

@@ -10,6 +10,8 @@ import pytest
 from tableteach.client import ExperimenterClient, ParticipantClient, run_teacher
 from tableteach.core import session as core
 
+from tests.waiting import wait_until
+
 from .conftest import EXPERIMENTER_TOKEN, open_study, study_spec
 
 pytestmark = pytest.mark.slow
@@ -70,13 +72,8 @@ def test_kill_while_the_robot_executes_and_mid_demonstration(server_factory) -> 
     state = api.state()
     assert state["execution"]["events"] == events and state["step"] == running["step"]
     # The robot forgot the execution with the old process; it carries out the same one again.
-    import time
-
-    deadline = time.monotonic() + 20
-    while state["execution"]["status"] != "finished":
-        assert time.monotonic() < deadline
-        time.sleep(0.1)
-        state = api.state()
+    state = wait_until(lambda: (s := api.state())["execution"]["status"] == "finished" and s,
+                       "the restarted server to finish the execution", interval=0.1)
     assert state["execution"]["events"] == events
     second.kill()
 
