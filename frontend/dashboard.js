@@ -5,7 +5,7 @@
 import * as api from "./dashboard-api.js";
 import { PALETTE, lineChart, quatYaw, tableView } from "./charts.js";
 import { h, pretty } from "./dom.js";
-import { studyFormView } from "./dashboard-study-form.js";
+import { OUTCOME_CODES, studyFormView } from "./dashboard-study-form.js";
 
 const POLL_MS = 4000;
 const app = document.getElementById("app");
@@ -232,8 +232,9 @@ async function studyView(studyId) {
         codesNote()));
   };
   const codesNote = () => (study.completion_code
-    ? h("p", { class: "small muted" }, "Completion code ", h("code", {}, study.completion_code),
-      study.screened_out_code ? [" · screened-out code ", h("code", {}, study.screened_out_code)] : null,
+    ? h("p", { class: "small muted", id: "codes-note" }, OUTCOME_CODES.filter(([name]) => study[name])
+      .flatMap(([name, label], i) => [i ? " · " : "", `${label}: `, h("code", {}, study[name])]),
+      study.screened_out_code ? [" · other screened-out outcomes: ", h("code", {}, study.screened_out_code)] : null,
       study.timeout_minutes ? ` · time-out after ${study.timeout_minutes} min` : null)
     : h("p", { class: "small warn" }, "No completion code set: each participant gets their own code, which Prolific cannot check. ",
       h("a", { href: `#/study/${encodeURIComponent(study.id)}/edit` }, "Set the codes")));
@@ -343,6 +344,14 @@ function duration(seconds) {
 
 const END_REASONS = { declined_consent: "declined consent", withdrew: "withdrew", comprehension: "failed the quiz",
   timeout: "timed out" };
+const OUTCOME_NAMES = { completed: "completed", attention: "failed an attention check", ...END_REASONS };
+
+/** The code a participant was shown and why (their outcome), e.g. "C2SCREEN (timed out)". */
+function codeCell(p) {
+  if (!p.outcome) return h("span", { class: "muted" }, "–");
+  const why = h("span", { class: "small muted" }, ` ${OUTCOME_NAMES[p.outcome] ?? p.outcome}`);
+  return [p.completion_code ? h("code", {}, p.completion_code) : h("span", { class: "muted" }, "no code"), why];
+}
 
 async function erase(study, p, after) {
   if (!confirm(`Erase participant #${p.participant_id}? Their events, answers, beliefs and robot recordings are deleted `
@@ -383,7 +392,7 @@ function renderLive(box, data, study, refresh) {
     h("td", { title: when(p.last_activity_at) }, ago(p.last_activity_at)),
     h("td", { class: "num" }, p.n_events),
     h("td", {}, p.prolific_pid ?? h("span", { class: "muted" }, "–")),
-    h("td", {}, p.completion_code ? h("code", {}, p.completion_code) : h("span", { class: "muted" }, "–")),
+    h("td", { class: "code-cell" }, codeCell(p)),
     h("td", {}, h("button", { class: "ghost small erase", title: "erase this participant's data",
       onclick: (e) => { e.stopPropagation(); erase(study, p, refresh); } }, "Erase")));
   });
@@ -450,7 +459,7 @@ async function participantView(studyId, participantId) {
   const p = data.participant;
   const facts = [["Condition", p.condition], ["Stage", p.stage], ["Joined", when(p.created_at)],
     ["Last activity", `${ago(p.last_activity_at)}`], ["Finished", when(p.finished_at)], ["Events", p.n_events],
-    ["External id", p.prolific_pid ?? "–"], ["Completion code", p.completion_code ?? "–"], ["Seed", p.seed],
+    ["External id", p.prolific_pid ?? "–"], ["Completion code", p.outcome ? `${p.completion_code ?? "no code"} (${OUTCOME_NAMES[p.outcome] ?? p.outcome})` : "–"], ["Seed", p.seed],
     ["Elapsed", duration(p.elapsed_seconds)], ["Task order", (p.task_order ?? study.tasks.map((_, i) => i)).map((i) => study.tasks[i].name).join(" → ")],
     ["Left early", p.end_reason ? END_REASONS[p.end_reason] ?? p.end_reason : "–"],
     ["Attention checks", p.attention_failed ? "failed" : "passed or none"]];

@@ -60,7 +60,13 @@ class StudyRow(Base):
     pilot: Mapped[bool] = mapped_column(Boolean, default=False)
     # Study operations (docs/running-a-study.md): study-level codes, counterbalancing, checks, timeouts.
     completion_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
-    screened_out_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    screened_out_code: Mapped[str | None] = mapped_column(String(64), nullable=True)  # before per-outcome codes
+    # One code per outcome (services/outcomes.py), each optional.
+    declined_consent_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    failed_quiz_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    failed_attention_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    timed_out_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    withdrew_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
     task_order: Mapped[str] = mapped_column(String(16), default="fixed", server_default="fixed")
     quiz: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list, server_default="[]")
     quiz_max_attempts: Mapped[int] = mapped_column(Integer, default=2, server_default="2")

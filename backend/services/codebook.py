@@ -9,6 +9,7 @@ from typing import Any
 
 from .context import Context
 from .exports import EXPORT_COLUMNS, EXPORTS, export_rows
+from .outcomes import OUTCOME_WORDS
 from .studies import get_study
 
 CODEBOOK_COLUMNS = ["file", "column", "type", "meaning", "units_or_levels", "likert_labels"]
@@ -19,6 +20,7 @@ TIME = "ISO 8601, UTC"
 STAGES = ("consent, instructions, quiz, task, questionnaire (under way); done; withdrawn; screened_out")
 END_REASONS = ("declined_consent, withdrew (data deleted), comprehension (failed the quiz), timeout; "
                "empty if the participant did not leave early")
+OUTCOME_LEVELS = "; ".join(f"{name} ({words})" for name, words in OUTCOME_WORDS.items()) + "; empty while under way"
 TRACE = "JSON list of states, each a sorted list of the objects on the table"
 STEP_KINDS = "practice, demonstration, query, test"
 
@@ -52,7 +54,10 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "external_session_id": ("text", "SESSION_ID from the study link", ""),
         "consent_at": ("datetime", "when consent was given", TIME),
         "consent_version": ("text", "version of the consent text agreed to", ""),
-        "completion_code": ("text", "the code the participant was given at the end", ""),
+        "completion_code": ("text", "the code the participant was shown at the end, for their outcome (empty: "
+                            "the study set no code for it, or they are under way)", ""),
+        "outcome": ("category", "how the participant's study ended, which decides the code they were shown",
+                    OUTCOME_LEVELS),
         "created_at": ("datetime", "when the participant joined", TIME),
         "last_activity_at": ("datetime", "the participant's last request", TIME),
         "finished_at": ("datetime", "when the participant finished or left", TIME),

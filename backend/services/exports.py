@@ -14,6 +14,7 @@ from ..errors import NotFound
 from .context import Context, aware, iso
 from .lifecycle import expire_timeouts
 from .monitoring import belief_view
+from .outcomes import outcome_of
 from .planning import session_of
 from .state import task_sequence
 from .studies import study_row
@@ -24,8 +25,8 @@ EXPORTS = ("participants", "events", "steps", "beliefs", "questionnaire")
 PARTICIPANT_COLUMNS = [
     "participant_id", "study_id", "condition", "task_order", "pilot", "stage", "end_reason", "timed_out",
     "quiz_failures", "attention_failed", "task_index", "prolific_pid", "external_study_id",
-    "external_session_id", "consent_at", "consent_version", "completion_code", "created_at", "last_activity_at",
-    "finished_at", "total_seconds", "n_events", "seed",
+    "external_session_id", "consent_at", "consent_version", "completion_code", "outcome", "created_at",
+    "last_activity_at", "finished_at", "total_seconds", "n_events", "seed",
 ]
 
 
@@ -88,7 +89,7 @@ def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) ->
                 yield [p.id, p.study_id, p.condition, _json(p.task_order or list(range(len(study.tasks)))), p.pilot,
                        p.stage, p.end_reason, p.end_reason == "timeout", p.quiz_failures, p.attention_failed,
                        p.task_index, p.prolific_pid, p.external_study_id, p.external_session_id, iso(p.consent_at),
-                       p.consent_version, p.completion_code, iso(p.created_at), iso(p.last_activity_at),
+                       p.consent_version, p.completion_code, outcome_of(p), iso(p.created_at), iso(p.last_activity_at),
                        iso(p.finished_at), _seconds(p.created_at, p.finished_at) if p.stage == "done" else None,
                        p.n_events, p.seed]
         elif name == "steps":

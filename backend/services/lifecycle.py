@@ -18,6 +18,7 @@ from ..db.tables import ParticipantRow, utcnow
 from ..errors import Conflict, NotFound
 from ..sim import recordings
 from .context import Context, commit, iso
+from .outcomes import code_to_show
 from .state import Action, act, end_participation, mark_timed_out, robot_key
 from .studies import study_row
 
@@ -57,7 +58,7 @@ def withdraw(ctx: Context, token: str, *, key: str | None = None) -> dict[str, A
         _forget_robot(ctx, a.participant, len(a.study.tasks))
         repo.delete_participant_data(a.s, participant_id=a.participant.id)
         p = a.participant
-        p.completion_code, p.attention_failed, p.quiz_failures = None, False, 0
+        p.completion_code, p.attention_failed, p.quiz_failures = code_to_show(a.study, "withdrew"), False, 0
         end_participation(a.s, p, stage="withdrawn", reason="withdrew", key=a.key, digest=a.digest)
         a.n_logged += 1
 

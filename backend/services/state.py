@@ -16,7 +16,7 @@ from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import Conflict, NotAuthenticated
 from ..sim import recordings
 from ..sim.recordings import RecordingId
-from . import executions
+from . import executions, outcomes
 from .context import Context, app_version, aware, iso
 from .guidance import lay_summary, progress, required_objects
 from .planning import ROBOT_TURNS, position_of, session_of
@@ -52,8 +52,11 @@ def end_participation(s: Any, participant: ParticipantRow, *, stage: str, reason
 
 
 def mark_timed_out(s: Any, participant: ParticipantRow) -> None:
-    """Screen out a participant idle past the study's timeout; their data stay, flagged."""
+    """Screen out a participant idle past the study's timeout; their data stay, flagged, and they are given the
+    study's time-out code."""
     idle_since = aware(participant.last_activity_at)
+    study = repo.get_study(s, study_id=participant.study_id)
+    participant.completion_code = None if study is None else outcomes.code_to_show(study, "timeout")
     end_participation(s, participant, stage="screened_out", reason="timeout")
     participant.last_activity_at = idle_since or participant.last_activity_at  # the timeout is not activity
 
@@ -185,13 +188,12 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         out["completion"] = {"code": participant.completion_code, "reason": None,
                              "redirect_url": _completion_url(study, participant.completion_code),
                              "learned": _learned(s, participant)}
-    elif participant.end_reason is not None and participant.end_reason != "withdrew":
-        # Declined consent, failed the comprehension quiz or timed out: the study's screened-out code.
-        code = study.screened_out_code
-        out["completion"] = {"code": code, "reason": participant.end_reason,
-                             "redirect_url": _completion_url(study, code), "learned": []}
-    elif participant.stage == "withdrawn":
-        out["completion"] = {"code": None, "reason": participant.end_reason, "redirect_url": None, "learned": []}
+    elif participant.end_reason is not None:
+        # Declined consent, failed the quiz, timed out or withdrew: the code given for that outcome (outcomes.py).
+        code = participant.completion_code
+        redirect = _completion_url(study, code) if code or participant.end_reason != "withdrew" else None
+        out["completion"] = {"code": code, "reason": participant.end_reason, "redirect_url": redirect,
+                             "learned": []}
     # Progress follows the participant's own task order (counterbalancing): position, not the task's index.
     sequence = task_sequence(study, participant)
     configs = [session_config(study, participant, i) for i in sequence]

@@ -7,8 +7,9 @@ from typing import Any, Literal
 from pydantic import BaseModel, ConfigDict, Field
 
 from ..core.domain import DINNER_OBJECTS
-from ..core.priors import NAMED_PRIORS
-from ..core.puns import CRITERIA
+from ..services.outcomes import OUTCOMES
+# The study definition's model is the services' validator: one set of rules for the API and the services.
+from ..services.study_definition import StudyIn as StudyIn
 
 Id = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
 ObjectName = Literal[DINNER_OBJECTS]  # type: ignore[valid-type]
@@ -86,60 +87,6 @@ class JoinOut(BaseModel):
     state: ParticipantState
 
 
-class TaskIn(Strict):
-    key: Literal["task1", "task2", "custom", "none"]
-    ground_truth: str | None = Field(None, max_length=2000)
-    name: str | None = Field(None, max_length=200)
-    instructions: str | None = Field(None, max_length=5000)
-
-
-class ItemIn(Strict):
-    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
-    text: str = Field(max_length=2000)
-    kind: Literal["likert5", "rating10", "text", "attention"]
-    required: bool = True
-    expected: int | None = Field(None, ge=1, le=5,
-                                 description="attention checks (shown as a 1-5 agreement scale): the expected answer")
-
-
-class QuizItemIn(Strict):
-    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
-    text: str = Field(min_length=1, max_length=2000)
-    options: list[str] = Field(min_length=2, max_length=10)
-    correct: int = Field(ge=0, le=9, description="index (from 0) of the correct option")
-
-
-
-class StudyIn(Strict):
-    name: str = Field("Untitled study", max_length=200)
-    tasks: list[TaskIn] = Field(min_length=1, max_length=10)
-    conditions: list[Literal["active", "random", "batch"]] = Field(["active"], min_length=1, max_length=3)
-    assignment: Literal["random", "balanced"] = "balanced"
-    n_practice: int = Field(1, ge=0, le=20)
-    n_demonstrations: int = Field(2, ge=0, le=20)
-    n_queries: int = Field(3, ge=0, le=20)
-    n_tests: int = Field(3, ge=0, le=20)
-    prior: Literal[tuple(NAMED_PRIORS)] = "chains-2020-sat"  # type: ignore[valid-type]
-    criterion: Literal[CRITERIA] = "min-regret"  # type: ignore[valid-type]
-    questionnaire: list[ItemIn] = Field(default_factory=list, max_length=100)
-    consent_text: str | None = Field(None, max_length=20000)
-    consent_version: str | None = Field(None, max_length=64)
-    completion_url: str | None = Field(None, max_length=500, pattern=r"^https?://\S+$",
-                                       description="redirect after completion; {code} is replaced")
-    pilot: bool = False
-    completion_code: str | None = Field(None, min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$",
-                                        description="every participant who finishes is redirected with this code")
-    screened_out_code: str | None = Field(None, min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$",
-                                          description="for those who declined consent, failed a check or timed out")
-    task_order: Literal["fixed", "random", "balanced"] = "fixed"
-    quiz: list[QuizItemIn] = Field(default_factory=list, max_length=20)
-    quiz_max_attempts: int = Field(2, ge=1, le=10)
-    timeout_minutes: int | None = Field(None, ge=1, le=1440)
-    robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
-                               "than real time (recordings keep real time)")
-
-
-STUDY_FIELDS = tuple(StudyIn.model_fields)
 
 
 class StudyOut(BaseModel):
@@ -161,6 +108,11 @@ class StudyOut(BaseModel):
     consent_version: str
     completion_url: str | None
     completion_code: str | None
+    declined_consent_code: str | None = None
+    failed_quiz_code: str | None = None
+    failed_attention_code: str | None = None
+    timed_out_code: str | None = None
+    withdrew_code: str | None = None
     screened_out_code: str | None
     task_order: str
     quiz: list[dict[str, Any]]
@@ -189,7 +141,9 @@ class ParticipantBaseOut(BaseModel):
     last_activity_at: str | None
     finished_at: str | None
     n_events: int
-    completion_code: str | None
+    completion_code: str | None = Field(description="the code the participant was shown at the end")
+    outcome: Literal[OUTCOMES] | None = Field(  # type: ignore[valid-type]
+        None, description="why they were given that code: how their study ended (empty while under way)")
 
 
 class ParticipantRowOut(ParticipantBaseOut):

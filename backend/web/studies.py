@@ -5,10 +5,7 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Query, Response, status
-from pydantic import ValidationError
-
 from .. import services
-from ..errors import InvalidFields
 from .deps import ContextDep, Experimenter, ParticipantId
 from .schemas import (BeliefOut, ErasureOut, FormulaOut, ParticipantRowOut, PilotResetOut, StudyIn, StudyOut,
                       error_responses)
@@ -22,31 +19,6 @@ STUDY_IN = {"requestBody": {"required": True, "content": {"application/json": {
     "schema": {"$ref": "#/components/schemas/StudyIn"}}}}}
 
 
-def _field(loc: tuple[Any, ...]) -> str:
-    return ".".join(str(part) for part in loc) or "body"
-
-
-def validated_study(body: dict[str, Any]) -> dict[str, Any]:
-    """The study definition checked field by field; InvalidFields lists every unacceptable field at once."""
-    model = None
-    schema_errors: list[dict[str, str]] = []
-    try:
-        model = StudyIn.model_validate(body)
-    except ValidationError as exc:
-        schema_errors = [{"field": _field(e["loc"]), "message": e["msg"]} for e in exc.errors()]
-    defaults = {name: f.get_default(call_default_factory=True) for name, f in StudyIn.model_fields.items()
-                if not f.is_required()}
-    try:
-        errors = services.study_problems({**defaults, **body})  # the plainer words, where both say something
-    except Exception:  # values of the wrong type: the schema's messages name them
-        errors = []
-    seen = {e["field"] for e in errors}
-    errors += [e for e in schema_errors if not any(e["field"] == f or e["field"].startswith(f + ".") for f in seen)]
-    if errors or model is None:
-        raise InvalidFields(errors or [{"field": "body", "message": "expected a study definition"}])
-    return model.model_dump()
-
-
 @router.get("", response_model=list[StudyOut])
 def list_studies(ctx: ContextDep) -> list[dict]:
     """Every study, newest first."""
@@ -56,7 +28,7 @@ def list_studies(ctx: ContextDep) -> list[dict]:
 @router.post("", response_model=StudyOut, status_code=status.HTTP_201_CREATED, openapi_extra=STUDY_IN)
 def create_study(body: StudyBody, ctx: ContextDep) -> dict:
     """Create a study (status draft; open it to let participants join). A 422 lists every bad field in errors."""
-    return services.create_study(ctx, validated_study(body))
+    return services.create_study(ctx, body)
 
 
 @router.get("/{study_id}", response_model=StudyOut)
@@ -75,9 +47,7 @@ def study_spec(study_id: str, ctx: ContextDep) -> dict:
 def update_study(study_id: str, body: StudyBody, ctx: ContextDep) -> dict:
     """Change any fields of a draft study (the others keep their values); an open or closed study only its name,
     pilot flag, completion codes, completion URL and timeout (409 for the rest: clone it instead)."""
-    current = services.editable_spec(services.get_study(ctx, study_id))
-    merged = validated_study({**current, **body})
-    return services.update_study(ctx, study_id, {k: merged[k] for k in body})
+    return services.update_study(ctx, study_id, body)
 
 
 @router.post("/{study_id}/clone", response_model=StudyOut, status_code=status.HTTP_201_CREATED)
