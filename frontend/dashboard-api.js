@@ -67,6 +67,8 @@ export const updateStudy = (id, changes) => request("PATCH", `${API}/studies/${e
 export const cloneStudy = (id) => request("POST", `${API}/studies/${enc(id)}/clone`);
 export const resetPilot = (id) => request("POST", `${API}/studies/${enc(id)}/pilot/reset`);
 export const eraseParticipant = (id, pid) => request("DELETE", `${API}/studies/${enc(id)}/participants/${enc(pid)}`);
+export const restoreParticipant = (id, pid) => request("POST", `${API}/studies/${enc(id)}/participants/${enc(pid)}/restore`);
+export const helpParticipant = (id, pid) => request("POST", `${API}/studies/${enc(id)}/participants/${enc(pid)}/help`);
 export const describeFormula = (formula) => request("GET", `${API}/formulas/describe?formula=${enc(formula)}`);
 
 export function live(id, dropoutMinutes) {

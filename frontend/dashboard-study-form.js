@@ -238,7 +238,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
         study?.screened_out_code ? field("Screened-out code (older studies: for outcomes without their own code)",
           h("input", { name: "screened_out_code", id: "screened_out_code", value: study.screened_out_code }), "screened_out_code") : null),
       h("div", { class: "row" },
-        field("Time-out after (minutes idle, empty: never)", h("input", { type: "number", name: "timeout_minutes", id: "timeout_minutes", min: 1, max: 1440, value: study?.timeout_minutes ?? "" }), "timeout_minutes")),
+        field(editing && study.status !== "draft" ? "Time-out after (minutes idle, empty: never; a change counts idleness from the change)" : "Time-out after (minutes idle, empty: never)", h("input", { type: "number", name: "timeout_minutes", id: "timeout_minutes", min: 1, max: 1440, value: study?.timeout_minutes ?? "" }), "timeout_minutes")),
       h("label", { class: "inline" }, checkbox("pilot", d.pilot), "Pilot: participants who join now are flagged as pilots")),
     h("div", { class: "row" }, h("button", { type: "submit", class: "primary", id: "create" }, editing ? "Save changes" : "Create study"),
       h("a", { href: editing ? `#/study/${encodeURIComponent(study.id)}` : "#/", class: "button ghost" }, "Cancel")),

@@ -353,6 +353,25 @@ function codeCell(p) {
   return [p.completion_code ? h("code", {}, p.completion_code) : h("span", { class: "muted" }, "no code"), why];
 }
 
+const RESTORABLE = ["timeout", "comprehension", "declined_consent"];
+const HELPABLE_WORDS = {
+  instructions: "Their instructions are marked as read.", quiz: "They are let past the comprehension quiz.",
+  task: "Their current task ends (what they taught so far is kept); the next task or the questionnaire follows.",
+  questionnaire: "Their questionnaire ends with the answers given so far, and they are done." };
+const HELPABLE = Object.keys(HELPABLE_WORDS);
+
+/** Restore or help on one participant after a confirmation; the page shows the result (both are logged). */
+async function assist(call, studyId, p, question) {
+  if (!confirm(`${question}\n\nThis is recorded in the participant's event log.`)) return;
+  try {
+    const row = await call(studyId, p.participant_id);
+    toast(`Participant #${p.participant_id} is now at the ${row.stage} stage`);
+    route();
+  } catch (error) {
+    toast(error.detail ?? String(error), "error");
+  }
+}
+
 async function erase(study, p, after) {
   if (!confirm(`Erase participant #${p.participant_id}? Their events, answers, beliefs and robot recordings are deleted `
     + "for good; an audit entry without personal data is kept.")) return;
@@ -466,6 +485,13 @@ async function participantView(studyId, participantId) {
   app.replaceChildren(
     h("div", { class: "page-head" }, h("h1", {}, `Participant #${p.participant_id} `, pill(p.status), p.pilot ? pill("pilot") : null),
       h("div", { class: "row" }, h("button", { onclick: () => route() }, "Refresh"),
+        RESTORABLE.includes(p.end_reason) ? h("button", { id: "restore-participant", onclick: () => assist(
+          api.restoreParticipant, studyId, p, `Restore participant #${p.participant_id}? They continue where they were `
+          + "(a failed quiz gets fresh attempts) and are no longer screened out; their code is withdrawn.") },
+        "Restore") : null,
+        HELPABLE.includes(p.stage) ? h("button", { id: "help-participant", onclick: () => assist(
+          api.helpParticipant, studyId, p, `Help participant #${p.participant_id} on? ${HELPABLE_WORDS[p.stage]}`) },
+        "Help on to the next stage") : null,
         h("button", { class: "erase", id: "erase-participant", onclick: () => erase(study, p, () => {
           location.hash = `#/study/${encodeURIComponent(studyId)}`;
         }) }, "Erase this participant's data"))),

@@ -1,4 +1,4 @@
-"""Prolific end to end: a completion code per outcome
+"""Prolific end to end: a completion code per outcome, time-out changes that count from the change
 
 Revision ID: 0005_prolific
 Revises: 0004_participant_ux
@@ -26,6 +26,7 @@ def upgrade() -> None:
     with op.batch_alter_table('studies', schema=None) as batch_op:
         for name in OUTCOME_CODES:
             batch_op.add_column(sa.Column(name, sa.String(length=64), nullable=True))
+        batch_op.add_column(sa.Column('timeout_changed_at', sa.DateTime(timezone=True), nullable=True))
     # Participants screened out before this revision were shown the study's single screened-out code: store it
     # as the code they were given (the exports and the dashboard show it).
     op.execute(
@@ -38,5 +39,6 @@ def upgrade() -> None:
 def downgrade() -> None:
     """Revert this migration (the screened-out participants keep the code they were shown)."""
     with op.batch_alter_table('studies', schema=None) as batch_op:
+        batch_op.drop_column('timeout_changed_at')
         for name in reversed(OUTCOME_CODES):
             batch_op.drop_column(name)

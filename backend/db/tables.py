@@ -71,6 +71,8 @@ class StudyRow(Base):
     quiz: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list, server_default="[]")
     quiz_max_attempts: Mapped[int] = mapped_column(Integer, default=2, server_default="2")
     timeout_minutes: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    # When timeout_minutes last changed: a new limit counts only idleness after it (None: since creation).
+    timeout_changed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
     robot_speed: Mapped[float] = mapped_column(Float, default=1.0, server_default=text("1.0"))  # playback rate 1-3
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)

@@ -19,6 +19,7 @@ from .exports import (
     QUESTIONNAIRE_COLUMNS,
     export_rows,
 )
+from .assistance import help_on, restore_participant
 from .codebook import CODEBOOK_COLUMNS, codebook_rows, export_files
 from .lifecycle import erase_participant, erasure_log, expire_timeouts, reset_pilot, withdraw
 from .notify import LocalNotifier
@@ -63,6 +64,8 @@ from .viewing import (
 )
 
 __all__ = [
+    "help_on",
+    "restore_participant",
     "CODEBOOK_COLUMNS",
     "answer_quiz",
     "clone_study",

@@ -19,7 +19,7 @@ from ..errors import Conflict, NotFound
 from ..sim import recordings
 from .context import Context, commit, iso
 from .outcomes import code_to_show
-from .state import Action, act, end_participation, mark_timed_out, robot_key
+from .state import Action, act, end_participation, mark_timed_out, robot_key, timed_out
 from .studies import study_row
 
 log = logging.getLogger(__name__)
@@ -125,12 +125,10 @@ def expire_timeouts(ctx: Context, study_id: str) -> int:
         if not study.timeout_minutes:
             return 0
         since = utcnow() - timedelta(minutes=study.timeout_minutes)
-        if not repo.stale_participants(s, study_id=study_id, idle_since=since):
-            return 0
+        if not any(timed_out(study, p) for p in repo.stale_participants(s, study_id=study_id, idle_since=since)):
+            return 0  # (a changed limit counts idleness from the change: state.timed_out)
     with ctx.db.write() as s:
-        stale = repo.stale_participants(s, study_id=study_id, idle_since=since)
-        for p in stale:
-            mark_timed_out(s, p)
+        stale = [p for p in repo.stale_participants(s, study_id=study_id, idle_since=since) if mark_timed_out(s, p)]
         try:
             repo.commit(s)
         except repo.WriteConflict:

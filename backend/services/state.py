@@ -34,11 +34,15 @@ def task_sequence(study: StudyRow, participant: ParticipantRow) -> list[int]:
 
 
 def timed_out(study: StudyRow, participant: ParticipantRow) -> bool:
-    """Whether a participant still under way has been idle past the study's timeout."""
+    """Whether a participant still under way has been idle past the study's timeout; after a change of the limit
+    only idleness since the change counts (lowering it never screens out at once those already idle)."""
     if not study.timeout_minutes or participant.stage not in UNDER_WAY:
         return False
-    last = aware(participant.last_activity_at) or utcnow()
-    return (utcnow() - last).total_seconds() > study.timeout_minutes * 60
+    idle_since = aware(participant.last_activity_at) or utcnow()
+    changed = aware(study.timeout_changed_at)
+    if changed is not None and changed > idle_since:
+        idle_since = changed
+    return (utcnow() - idle_since).total_seconds() > study.timeout_minutes * 60
 
 
 def end_participation(s: Any, participant: ParticipantRow, *, stage: str, reason: str,
@@ -51,14 +55,18 @@ def end_participation(s: Any, participant: ParticipantRow, *, stage: str, reason
                       client_event_id=key, request_digest=digest)
 
 
-def mark_timed_out(s: Any, participant: ParticipantRow) -> None:
-    """Screen out a participant idle past the study's timeout; their data stay, flagged, and they are given the
-    study's time-out code."""
-    idle_since = aware(participant.last_activity_at)
+def mark_timed_out(s: Any, participant: ParticipantRow) -> bool:
+    """Screen out a participant idle past the study's timeout (false, and nothing changes, if they are not): their
+    data stay, flagged, they are given the study's time-out code, and they finished at their last activity."""
     study = repo.get_study(s, study_id=participant.study_id)
-    participant.completion_code = None if study is None else outcomes.code_to_show(study, "timeout")
+    if study is None or not timed_out(study, participant):
+        return False
+    idle_since = aware(participant.last_activity_at)
+    participant.completion_code = outcomes.code_to_show(study, "timeout")
     end_participation(s, participant, stage="screened_out", reason="timeout")
-    participant.last_activity_at = idle_since or participant.last_activity_at  # the timeout is not activity
+    if idle_since is not None:  # the time-out is not activity: they left when they last acted
+        participant.last_activity_at = participant.finished_at = idle_since
+    return True
 
 
 def robot_key(participant: ParticipantRow, task_index: int) -> str:

@@ -7,7 +7,7 @@ from typing import Any
 
 from ..core.domain import DINNER_TASK_FORMULAS
 from ..db import repository as repo
-from ..db.tables import StudyRow
+from ..db.tables import StudyRow, utcnow
 from ..errors import Conflict, InvalidFields, NotFound
 from .context import Context, commit, iso
 from .outcomes import OUTCOME_CODE_FIELDS
@@ -180,6 +180,8 @@ def update_study(ctx: Context, study_id: str, changes: dict[str, Any]) -> dict[s
                 raise Conflict(f"study {study_id!r} is {study.status}: {', '.join(frozen)} can change only while it "
                                f"is a draft (clone it to make a draft copy); expected only {', '.join(LIVE_FIELDS)}")
         values.pop("status")
+        if values["timeout_minutes"] != study.timeout_minutes:
+            study.timeout_changed_at = utcnow()  # the new limit counts idleness from now on
         for name, value in values.items():
             if getattr(study, name) != value:
                 setattr(study, name, value)

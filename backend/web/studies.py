@@ -7,8 +7,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Query, Response, status
 from .. import services
 from .deps import ContextDep, Experimenter, ParticipantId
-from .schemas import (BeliefOut, ErasureOut, FormulaOut, ParticipantRowOut, PilotResetOut, StudyIn, StudyOut,
-                      error_responses)
+from .schemas import (BeliefOut, ErasureOut, FormulaOut, ParticipantBaseOut, ParticipantRowOut, PilotResetOut,
+                      StudyIn, StudyOut, error_responses)
 
 ERRORS = error_responses(400, 401, 404, 409, 422)
 router = APIRouter(prefix="/api/v1/studies", tags=["experimenter"], dependencies=[Experimenter], responses=ERRORS)
@@ -88,6 +88,20 @@ def erase_participant(study_id: str, participant_id: ParticipantId,
     is kept. Erasing again answers 204 too."""
     services.erase_participant(ctx, study_id, participant_id)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.post("/{study_id}/participants/{participant_id}/restore", response_model=ParticipantBaseOut)
+def restore_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict:
+    """Bring back a participant who timed out (where they were), failed the quiz (fresh attempts) or declined
+    consent; logged as a "restored" event. 409 for anyone else."""
+    return services.restore_participant(ctx, study_id, participant_id)
+
+
+@router.post("/{study_id}/participants/{participant_id}/help", response_model=ParticipantBaseOut)
+def help_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict:
+    """Move a stuck participant past their stage (instructions, quiz, the current task, questionnaire); logged
+    as a "helped_on" event. 409 at consent or after the end."""
+    return services.help_on(ctx, study_id, participant_id)
 
 
 @router.get("/{study_id}/erasures", response_model=list[ErasureOut])
