@@ -12,10 +12,11 @@ from fastapi import APIRouter, FastAPI
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
-from . import analysis, dashboard, motion, viewer
+from . import analysis, dashboard, motion, openapi, viewer
 from .auth import FailureLimiter, experimenter_checker
 from .deps import require_experimenter
 from .limits import BodyLimit
+from .methods import AllowedMethods
 from .robots import make_robot
 from .schemas import error_responses
 
@@ -54,14 +55,16 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     # /docs and /redoc load their scripts from a CDN: offered in dev mode only (/openapi.json is always served).
     docs = {} if settings.dev_mode else {"docs_url": None, "redoc_url": None}
     app = FastAPI(title="TableTeach study server", version=app_version(), description=DESCRIPTION, lifespan=lifespan,
-                  **docs)
+                  generate_unique_id_function=openapi.operation_id, **docs)
     app.state.context = ctx
     app.state.settings = settings
     app.state.experimenter = checker
     app.state.dev_token = dev_token
     app.state.key_failures = FailureLimiter()
     errors.install(app)
+    openapi.install(app)
     app.add_middleware(BodyLimit)
+    app.add_middleware(AllowedMethods, routes_of=lambda: app)
     for module in (participants, studies, exports, analysis, dashboard, motion, viewer, pages):
         app.include_router(module.router, responses=_common_errors(module.router))
     app.include_router(studies.formulas, responses=_common_errors(studies.formulas))

@@ -57,6 +57,98 @@ class JoinIn(Strict):
     session_id: str | None = Field(None, min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
 
 
+class ConsentOut(BaseModel):
+    text: str = Field(description="the consent text to show")
+    version: str = Field(description="send it back with the answer (POST /me/consent)")
+    given_at: str | None = Field(description="when consent was given (ISO 8601), empty before")
+
+
+class StateTaskOut(BaseModel):
+    """The task under way."""
+
+    index: int = Field(description="the task's number in the study definition, from 0")
+    total: int = Field(description="how many tasks the study has")
+    name: str
+    instructions: str
+    key: Literal["task1", "task2", "custom", "none"]
+    position: int = Field(description="the task's place in this participant's order, from 0")
+    required: list[str] = Field(description="objects the task says must end up on the table")
+
+
+class StateStepOut(BaseModel):
+    """Where the participant is within the task."""
+
+    kind: Literal["practice", "demonstration", "query", "test", "done"]
+    index: int = Field(description="the step's number within its kind, from 0")
+    total: int = Field(description="how many steps of this kind the task has")
+
+
+class DemonstrationOut(BaseModel):
+    """A practice trial or demonstration under way: what the participant has placed and the robot reported."""
+
+    placed: list[str] = Field(description="objects placed so far, in order")
+    labels: list[str] = Field(description="objects in their places on the table now, as the robot reported them")
+    trace: list[list[str]] = Field(description="the table after each placement")
+    settled: bool = Field(description="the robot has reported the table after every placement")
+
+
+class ExecutionStateOut(BaseModel):
+    """The robot's execution of the current query or test."""
+
+    kind: Literal["query", "test"]
+    index: int
+    status: Literal["not_started", "running", "finished"]
+    events: list[str] | None = Field(description="the objects the robot places, in order (once started)")
+    trace: list[list[str]] | None = Field(description="the table after each of the robot's placements (finished)")
+    replays: int = Field(0, description="how often the participant has watched it again")
+
+
+class QuestionnaireItemOut(BaseModel):
+    """A questionnaire item as the participant sees it (an attention check looks like any agreement item)."""
+
+    id: str
+    text: str
+    kind: Literal["likert5", "rating10", "text", "attention"]
+    required: bool
+
+
+class LearnedOut(BaseModel):
+    """The debriefing: what the robot believes a task is, once the participant has finished."""
+
+    task_index: int
+    map_formula: str
+    map_description: str
+    summary: str
+
+
+class CompletionOut(BaseModel):
+    """How the participant's study ended and the code they are shown for it."""
+
+    code: str | None = Field(description="the completion code for this outcome (empty: the study set none)")
+    reason: Literal["declined_consent", "withdrew", "comprehension", "timeout"] | None = Field(
+        description="why the participant left early; empty for those who finished")
+    redirect_url: str | None = Field(description="the study's completion URL with the code; empty if it has none")
+    learned: list[LearnedOut]
+
+
+class QuizQuestionOut(BaseModel):
+    id: str
+    text: str
+    options: list[str]
+
+
+class QuizStateOut(BaseModel):
+    items: list[QuizQuestionOut]
+    failed_attempts: int
+    attempts_left: int
+
+
+class ProgressOut(BaseModel):
+    done: int = Field(description="steps of the whole study done")
+    total: int = Field(description="steps of the whole study")
+    minutes_left: int = Field(description="about how many minutes are left (rounded up)")
+
+
 class ParticipantState(BaseModel):
     """What a participant sees; every participant action answers with it."""
 
@@ -66,17 +158,15 @@ class ParticipantState(BaseModel):
     stage: Literal["consent", "instructions", "quiz", "task", "questionnaire", "done", "withdrawn", "screened_out"]
     n_events: int
     objects: list[str]
-    consent: dict[str, Any]
-    task: dict[str, Any] | None
-    step: dict[str, Any] | None
-    demonstration: dict[str, Any] | None
-    execution: dict[str, Any] | None
-    questionnaire: list[dict[str, Any]] | None
-    completion: dict[str, Any] | None = Field(
-        description="at the end: code, redirect_url (the study's completion URL with the code), reason for leaving "
-                    "early (declined_consent, withdrew, comprehension, timeout) and the debriefing")
-    quiz: dict[str, Any] | None = Field(None, description="at the quiz stage: items, failed_attempts, attempts_left")
-    progress: dict[str, Any] | None = Field(None, description="{done, total, minutes_left}: steps of the whole study")
+    consent: ConsentOut
+    task: StateTaskOut | None = Field(description="at the task stage")
+    step: StateStepOut | None = Field(description="at the task stage")
+    demonstration: DemonstrationOut | None = Field(description="during a practice trial or demonstration")
+    execution: ExecutionStateOut | None = Field(description="during a query or test")
+    questionnaire: list[QuestionnaireItemOut] | None = Field(description="at the questionnaire stage")
+    completion: CompletionOut | None = Field(description="at the end, or after leaving early")
+    quiz: QuizStateOut | None = Field(None, description="at the quiz stage")
+    progress: ProgressOut | None = Field(None, description="steps of the whole study")
     replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
 
 
@@ -89,12 +179,36 @@ class JoinOut(BaseModel):
 
 
 
+class StudyTaskOut(BaseModel):
+    """A stored task: named tasks carry their fixed formula, custom ones their canonical formula."""
+
+    key: Literal["task1", "task2", "custom", "none"]
+    ground_truth: str | None
+    name: str
+    instructions: str
+
+
+class StudyItemOut(BaseModel):
+    id: str
+    text: str
+    kind: Literal["likert5", "rating10", "text", "attention"]
+    required: bool
+    expected: int | None = Field(None, description="attention checks: the expected answer (1-5)")
+
+
+class StudyQuizItemOut(BaseModel):
+    id: str
+    text: str
+    options: list[str]
+    correct: int
+
+
 class StudyOut(BaseModel):
     id: str
     name: str
     status: Literal["draft", "open", "closed"]
     pilot: bool
-    tasks: list[dict[str, Any]]
+    tasks: list[StudyTaskOut]
     conditions: list[str]
     assignment: str
     n_practice: int
@@ -103,7 +217,7 @@ class StudyOut(BaseModel):
     n_tests: int
     prior: str
     criterion: str
-    questionnaire: list[dict[str, Any]]
+    questionnaire: list[StudyItemOut]
     consent_text: str
     consent_version: str
     completion_url: str | None
@@ -115,7 +229,7 @@ class StudyOut(BaseModel):
     withdrew_code: str | None = None
     screened_out_code: str | None
     task_order: str
-    quiz: list[dict[str, Any]]
+    quiz: list[StudyQuizItemOut]
     quiz_max_attempts: int
     timeout_minutes: int | None
     robot_speed: float = 1.0
@@ -154,7 +268,7 @@ class BeliefOut(BaseModel):
     participant_id: int
     condition: str
     stage: str
-    tasks: list[dict[str, Any]]
+    tasks: list[BeliefTaskOut]
 
 
 class FieldErrorOut(BaseModel):
@@ -189,9 +303,32 @@ class ErasureOut(BaseModel):
     erased_at: str | None
 
 
-class FormulaOut(BaseModel):
+class FormulaDescriptionOut(BaseModel):
+    """A formula in canonical form and in plain words."""
+
+    formula: str = Field(description="canonical form, e.g. (!fork U knife) & F(bowl)")
+    description: str = Field(description="in plain English")
+
+
+class BeliefFormulaOut(BaseModel):
     formula: str
     description: str
+    p: float = Field(description="its probability under the learner's belief")
+
+
+class BeliefTaskOut(BaseModel):
+    """What the learner believes one task is."""
+
+    task_index: int
+    task: str
+    phase: str = Field(description="the task's teaching phase (practice, demonstration, query, test, done)")
+    n_observations: int = Field(description="demonstrations and assessed executions learned from")
+    entropy: float = Field(description="entropy of the belief (nats)")
+    similarity: float | None = Field(description="expected similarity to the ground truth (empty when unknown)")
+    map_similarity: float | None
+    map_formula: str
+    map_description: str
+    top: list[BeliefFormulaOut]
 
 
 ERROR_MEANINGS = {

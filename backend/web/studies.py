@@ -7,8 +7,8 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Query, Response, status
 from .. import services
 from .deps import ContextDep, Experimenter, ParticipantId
-from .schemas import (BeliefOut, ErasureOut, FormulaOut, ParticipantBaseOut, ParticipantRowOut, PilotResetOut,
-                      StudyIn, StudyOut, error_responses)
+from .schemas import (BeliefOut, ErasureOut, FormulaDescriptionOut, ParticipantBaseOut, ParticipantRowOut,
+                      PilotResetOut, StudyIn, StudyOut, error_responses)
 
 ERRORS = error_responses(400, 401, 404, 409, 422)
 router = APIRouter(prefix="/api/v1/studies", tags=["experimenter"], dependencies=[Experimenter], responses=ERRORS)
@@ -116,7 +116,7 @@ def belief(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dic
     return services.belief_summary(ctx, study_id, participant_id)
 
 
-@formulas.get("/describe", response_model=FormulaOut)
+@formulas.get("/describe", response_model=FormulaDescriptionOut)
 def describe_formula(formula: Annotated[str, Query(min_length=1, max_length=2000,
                                                    description="e.g. F(bowl) & (!fork U knife)")]) -> dict:
     """A custom task's ground-truth formula in canonical form and in plain words (422 says what is wrong)."""
