@@ -9,12 +9,14 @@ and a plain message (plain_words.py).
 from __future__ import annotations
 
 from collections.abc import Iterator
-from typing import Any, Literal
+import re
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from ..core import session as core
 from ..core.domain import DINNER_OBJECTS, DINNER_TASK_FORMULAS, get_domain
+from ..core.ltl import to_text
 from ..core.priors import NAMED_PRIORS
 from ..core.puns import CRITERIA
 from ..errors import InvalidFields, InvalidInput
@@ -30,9 +32,26 @@ PATTERN_HINTS = {
         "completion_code", "declined_consent_code", "failed_quiz_code", "failed_attention_code", "timed_out_code",
         "withdrew_code", "screened_out_code")},
     "completion_url": "a web address starting with https:// or http://, without spaces",
+    "tasks.*.ground_truth": (f"template clauses F(p), G(!p) or (!b U a) over {', '.join(DINNER_OBJECTS)}, "
+                             "joined by &, e.g. F(bowl) & (!fork U knife)"),
+    "formula": (f"template clauses F(p), G(!p) or (!b U a) over {', '.join(DINNER_OBJECTS)}, joined by &, "
+                "e.g. F(bowl) & (!fork U knife)"),
+    "quiz.*.options.*": "some text",
     "questionnaire.*.id": "letters, digits, - or _",
     "quiz.*.id": "letters, digits, - or _",
 }
+
+
+def integral(value: Any) -> Any:
+    """18.0 is the whole number 18 (JSON and its schema do not tell them apart), also inside a dict or list;
+    anything else is left to the field's own check."""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    if isinstance(value, dict):
+        return {k: integral(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [integral(v) for v in value]
+    return value
 
 
 class Definition(BaseModel):
@@ -40,14 +59,50 @@ class Definition(BaseModel):
 
     model_config = ConfigDict(extra="forbid", strict=True)
 
+    @field_validator("*", mode="before")
+    @classmethod
+    def _whole_numbers(cls, value: Any) -> Any:
+        return integral(value)
+
 
 def Code(meaning: str) -> Any:  # noqa: N802 (a Field factory, named like the type it describes)
     """An optional completion code for one outcome; the completion URL's {code} is replaced with it."""
     return Field(None, min_length=1, max_length=64, pattern=CODE_PATTERN, description=f"code for those who {meaning}")
 
 
+def formula_pattern() -> str:
+    """A regular expression of the formulas a custom task takes: template clauses of the dinner task joined by &
+    (or true, no clause at all)."""
+    space = get_domain("dinner").clause_space
+    clauses = sorted((re.escape(to_text(c.formula())).replace(r"\ ", r"\s+") for c in space.clauses), key=len,
+                     reverse=True)
+    one = "(?:" + "|".join(clauses) + ")"
+    return rf"^\s*(?:true|{one}(?:\s*&\s*{one})*)\s*$"
+
+
+FORMULA_PATTERN = formula_pattern()
+
+
+def when(condition: dict[str, Any], then: dict[str, Any]) -> dict[str, Any]:
+    """JSON Schema's if/then over an object's properties (generators of clients ignore it; validators apply it)."""
+    return {"if": {"properties": condition, "required": list(condition)}, "then": then}
+
+
+def _task_rules() -> list[dict[str, Any]]:
+    """What the hand-written rules below say about a task, in JSON Schema (so the schema is the validator)."""
+    named = [when({"key": {"const": key}}, {"properties": {"ground_truth": {"enum": [None, "", formula]}}})
+             for key, formula in DINNER_TASK_FORMULAS.items()]
+    return [*named,
+            when({"key": {"const": "custom"}}, {"properties": {"ground_truth": {"type": "string",
+                                                                                "pattern": FORMULA_PATTERN}},
+                                                 "required": ["ground_truth"]}),
+            when({"key": {"const": "none"}}, {"properties": {"ground_truth": {"enum": [None, ""]}}})]
+
+
 class TaskIn(Definition):
     """One task of a study: a named dinner task, a custom formula, or none (ground truth unknown)."""
+
+    model_config = ConfigDict(json_schema_extra={"allOf": _task_rules()})
 
     key: Literal["task1", "task2", "custom", "none"]
     ground_truth: str | None = Field(None, max_length=2000, description="custom tasks only: an LTL formula over "
@@ -58,6 +113,9 @@ class TaskIn(Definition):
 
 class ItemIn(Definition):
     """A questionnaire item; an attention check is shown as a 1-5 agreement item with an expected answer."""
+
+    model_config = ConfigDict(json_schema_extra=when(
+        {"kind": {"const": "attention"}}, {"properties": {"expected": {"type": "integer"}}, "required": ["expected"]}))
 
     id: str = Field(min_length=1, max_length=64, pattern=ID_PATTERN)
     text: str = Field(max_length=2000)
@@ -70,18 +128,27 @@ class ItemIn(Definition):
 class QuizItemIn(Definition):
     """A comprehension-quiz question with its options and the correct one."""
 
+    # correct is the number of one of the options: for each number of options, its bound
+    model_config = ConfigDict(json_schema_extra={"allOf": [
+        when({"options": {"maxItems": n}}, {"properties": {"correct": {"maximum": n - 1}}}) for n in range(2, 10)]})
+
     id: str = Field(min_length=1, max_length=64, pattern=ID_PATTERN)
     text: str = Field(min_length=1, max_length=2000)
-    options: list[str] = Field(min_length=2, max_length=10)
+    options: list[Annotated[str, Field(min_length=1, max_length=500, pattern=r"\S")]] = Field(min_length=2,
+                                                                                              max_length=10)
     correct: int = Field(ge=0, le=9, description="index (from 0) of the correct option")
 
 
 class StudyIn(Definition):
     """A study definition: what creates a study (and what GET /studies/{id}/spec gives back)."""
 
+    model_config = ConfigDict(json_schema_extra=when(
+        {"task_order": {"const": "balanced"}}, {"properties": {"tasks": {"maxItems": MAX_BALANCED_TASKS}}}))
+
     name: str = Field("Untitled study", max_length=200)
     tasks: list[TaskIn] = Field(min_length=1, max_length=10)
-    conditions: list[Literal["active", "random", "batch"]] = Field(["active"], min_length=1, max_length=3)
+    conditions: list[Literal["active", "random", "batch"]] = Field(["active"], min_length=1, max_length=3,
+                                                                   json_schema_extra={"uniqueItems": True})
     assignment: Literal["random", "balanced"] = "balanced"
     n_practice: int = Field(1, ge=0, le=20)
     n_demonstrations: int = Field(2, ge=0, le=20)
@@ -134,13 +201,17 @@ def _dicts(items: Any) -> Iterator[tuple[int, dict[str, Any]]]:
 def _task_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
     for i, task in _dicts(spec.get("tasks")):
         key, formula = task.get("key"), task.get("ground_truth") or None
+        if not isinstance(key, str) or not isinstance(formula, (str, type(None))):
+            continue  # the model names a key or formula of the wrong kind
         where = f"tasks.{i}.ground_truth"
         if key in DINNER_TASK_FORMULAS and formula and formula != DINNER_TASK_FORMULAS[key]:
             yield where, f"{key} has a fixed ground truth; leave this empty"
         elif key == "custom" and not formula:
             yield where, (f"a custom task needs a formula over {', '.join(DINNER_OBJECTS)}, e.g. F(bowl) & "
                           "(!fork U knife)")
-        elif key == "custom" and isinstance(formula, str):
+        elif key == "custom" and not re.match(FORMULA_PATTERN, formula):
+            yield where, f"must be {PATTERN_HINTS['tasks.*.ground_truth']}, got {shown(formula)}"
+        elif key == "custom":
             try:
                 describe_formula(formula)
             except InvalidInput as exc:
@@ -154,7 +225,9 @@ def _item_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
         seen: set[Any] = set()
         for i, item in _dicts(spec.get(field)):
             item_id = item.get("id")
-            if isinstance(item_id, str) and item_id in seen:
+            if not isinstance(item_id, str):
+                continue  # the model names a missing or non-text id
+            if item_id in seen:
                 yield f"{field}.{i}.id", f"{shown(item_id)} is already the id of an earlier item; each needs its own"
             seen.add(item_id)
     for i, item in _dicts(spec.get("questionnaire")):
@@ -166,13 +239,11 @@ def _item_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
                 and len(options) >= 2 and not 0 <= correct < len(options):
             yield f"quiz.{i}.correct", (f"must be the number of the correct option, from 0 to {len(options) - 1}, "
                                         f"got {correct}")
-        if isinstance(options, list) and any(isinstance(o, str) and not o.strip() for o in options):
-            yield f"quiz.{i}.options", "every answer option needs some text"
 
 
 def _study_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
     conditions = spec.get("conditions")
-    if isinstance(conditions, list) and len(set(map(str, conditions))) != len(conditions):
+    if isinstance(conditions, list) and len({str(c) for c in conditions}) != len(conditions):
         yield "conditions", "each protocol may be listed once"
     tasks = spec.get("tasks")
     if spec.get("task_order") == "balanced" and isinstance(tasks, list) and len(tasks) > MAX_BALANCED_TASKS:

@@ -12,6 +12,7 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 from ..core.session import ProtocolError
 from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, TableTeachError, TryLater
 from ..services.plain_words import field_errors
+from ..services.study_definition import PATTERN_HINTS
 from .pages import error_page, is_page
 
 log = logging.getLogger(__name__)
@@ -28,7 +29,7 @@ def _answer(status: int, detail: str, state: object = None, headers: dict[str, s
 
 
 def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
-    return field_errors(exc.errors())
+    return field_errors(exc.errors(), PATTERN_HINTS)
 
 
 def _validation_message(errors: list[dict[str, str]]) -> str:

@@ -15,7 +15,7 @@ from .deps import ContextDep
 from .frontend_files import FRONTEND, allowed_file
 from .schemas import error_responses
 
-router = APIRouter(tags=["pages"], responses=error_responses(422))
+router = APIRouter(tags=["operations"], responses=error_responses(422))  # its pages stay out of the schema
 ExternalId = Annotated[str | None, Query(max_length=128, pattern=r"^[A-Za-z0-9_.:\-]*$")]
 
 ASSETS = {
@@ -124,7 +124,7 @@ class HealthOut(BaseModel):
     version: str = Field(description="the server's version")
 
 
-@router.get("/healthz", response_model=HealthOut, tags=["operations"], responses=error_responses(503))
+@router.get("/healthz", response_model=HealthOut, responses=error_responses(503))
 def health(ctx: ContextDep) -> dict[str, str]:
     """Health check: 200 while the database answers; 503 (with Retry-After) when it is busy, missing or replaced."""
     ctx.db.health()

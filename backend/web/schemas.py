@@ -4,12 +4,13 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from ..core.domain import DINNER_OBJECTS
 from ..services.outcomes import OUTCOMES
 # The study definition's model is the services' validator: one set of rules for the API and the services.
 from ..services.study_definition import StudyIn as StudyIn
+from ..services.study_definition import integral
 
 Id = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
 ObjectName = Literal[DINNER_OBJECTS]  # type: ignore[valid-type]
@@ -17,9 +18,14 @@ StepKind = Literal["practice", "demonstration", "query", "test"]
 
 
 class Strict(BaseModel):
-    """Unknown fields are an error: a typo should not pass silently."""
+    """Unknown fields are an error: a typo should not pass silently; 18.0 is the whole number 18."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _whole_numbers(cls, value: Any) -> Any:
+        return integral(value)
 
 
 class StepGuard(Strict):

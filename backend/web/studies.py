@@ -6,6 +6,7 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Query, Response, status
 from .. import services
+from ..services.study_definition import FORMULA_PATTERN
 from .deps import ContextDep, Experimenter, ParticipantId
 from .schemas import (BeliefOut, ErasureOut, FormulaDescriptionOut, ParticipantBaseOut, ParticipantRowOut,
                       PilotResetOut, StudyIn, StudyOut, error_responses)
@@ -117,7 +118,7 @@ def belief(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dic
 
 
 @formulas.get("/describe", response_model=FormulaDescriptionOut)
-def describe_formula(formula: Annotated[str, Query(min_length=1, max_length=2000,
+def describe_formula(formula: Annotated[str, Query(min_length=1, max_length=2000, pattern=FORMULA_PATTERN,
                                                    description="e.g. F(bowl) & (!fork U knife)")]) -> dict:
     """A custom task's ground-truth formula in canonical form and in plain words (422 says what is wrong)."""
     return services.describe_formula(formula)
