@@ -71,7 +71,8 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
                  "participant chose an object), placed (the robot reported the table after placing it), "
                  "demonstration, execution_started, execution_finished, replay_watched (the participant watched "
                  "the robot's finished execution again), assessment, task_finished, questionnaire, completed, "
-                 "withdrawn, screened_out"),
+                 "withdrawn, screened_out, restored (the experimenter brought back a participant who timed out or was screened "
+                 "out), helped_on (the experimenter moved a stuck participant past their stage)"),
         "object": ("category", "the object placed (place and placed events)",
                    "dinner_plate, small_plate, bowl, knife, fork"),
         "labels": ("json", "the objects in their places on the table after a placement, as the robot reported them "

@@ -43,7 +43,7 @@ def test_every_unacceptable_field_is_named_once_with_what_was_expected(app_clien
     r = app_client.post("/api/v1/studies", json=BAD_SPECS[3], headers=EXP)
     errors = {e["field"]: e["message"] for e in r.json()["errors"]}
     assert set(errors) == {"tasks.0.ground_truth", "n_queries", "questionnaire.0.expected", "questionnaire.1.id",
-                           "quiz.0.options"}, errors
+                           "quiz.0.options.1"}, errors
     assert "custom" in errors["tasks.0.ground_truth"] and "whole number" in errors["n_queries"]
     assert "already" in errors["questionnaire.1.id"]
     r = app_client.post("/api/v1/studies", json=BAD_SPECS[2], headers=EXP)
