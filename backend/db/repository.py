@@ -310,6 +310,14 @@ def append_event(
 # ------------------------------------------------------------------ exports
 
 
+def count_study_events(session: Session, *, study_id: str) -> dict[int, int]:
+    """Stored events per participant of a study (what events.csv holds for each)."""
+    stmt = (select(EventRow.participant_id, func.count())
+            .join(ParticipantRow, EventRow.participant_id == ParticipantRow.id)
+            .where(ParticipantRow.study_id == study_id).group_by(EventRow.participant_id))
+    return {pid: n for pid, n in session.execute(stmt)}
+
+
 def iter_study_events(session: Session, *, study_id: str, kind: str | None = None,
                       include_pilot: bool = True) -> Iterator[EventRow]:
     """A study's events (optionally of one kind; pilots' unless include_pilot is False) by participant then

@@ -59,6 +59,7 @@ def withdraw(ctx: Context, token: str, *, key: str | None = None) -> dict[str, A
         repo.delete_participant_data(a.s, participant_id=a.participant.id)
         p = a.participant
         p.completion_code, p.attention_failed, p.quiz_failures = code_to_show(a.study, "withdrew"), False, 0
+        p.prolific_pid = p.external_study_id = p.external_session_id = None  # only the fact of withdrawal stays
         end_participation(a.s, p, stage="withdrawn", reason="withdrew", key=a.key, digest=a.digest)
         a.n_logged += 1
 
