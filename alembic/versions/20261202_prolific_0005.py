@@ -1,4 +1,5 @@
-"""Prolific end to end: a completion code per outcome, time-out changes that count from the change
+"""Prolific end to end: a completion code per outcome, time-out changes that count from the change, the
+uploaded Prolific submissions and a bonus rule per study, archived studies
 
 Revision ID: 0005_prolific
 Revises: 0004_participant_ux
@@ -27,6 +28,10 @@ def upgrade() -> None:
         for name in OUTCOME_CODES:
             batch_op.add_column(sa.Column(name, sa.String(length=64), nullable=True))
         batch_op.add_column(sa.Column('timeout_changed_at', sa.DateTime(timezone=True), nullable=True))
+        batch_op.add_column(sa.Column('prolific_submissions', sa.JSON(), nullable=True))
+        batch_op.add_column(sa.Column('prolific_uploaded_at', sa.DateTime(timezone=True), nullable=True))
+        batch_op.add_column(sa.Column('bonus_rule', sa.JSON(), nullable=True))
+        batch_op.add_column(sa.Column('archived_at', sa.DateTime(timezone=True), nullable=True))
     # Participants screened out before this revision were shown the study's single screened-out code: store it
     # as the code they were given (the exports and the dashboard show it).
     op.execute(
@@ -39,6 +44,8 @@ def upgrade() -> None:
 def downgrade() -> None:
     """Revert this migration (the screened-out participants keep the code they were shown)."""
     with op.batch_alter_table('studies', schema=None) as batch_op:
-        batch_op.drop_column('timeout_changed_at')
+        for name in ('archived_at', 'bonus_rule', 'prolific_uploaded_at', 'prolific_submissions',
+                     'timeout_changed_at'):
+            batch_op.drop_column(name)
         for name in reversed(OUTCOME_CODES):
             batch_op.drop_column(name)

@@ -73,6 +73,11 @@ class StudyRow(Base):
     timeout_minutes: Mapped[int | None] = mapped_column(Integer, nullable=True)
     # When timeout_minutes last changed: a new limit counts only idleness after it (None: since creation).
     timeout_changed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    # Reconciliation with Prolific (services/prolific.py): the last uploaded submissions export, the bonus rule.
+    prolific_submissions: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON, nullable=True)
+    prolific_uploaded_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    bonus_rule: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+    archived_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)  # hidden from the list
     robot_speed: Mapped[float] = mapped_column(Float, default=1.0, server_default=text("1.0"))  # playback rate 1-3
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)

@@ -18,6 +18,8 @@ TAGS = [
     {"name": "experimenter", "description": "Studies and their participants (auth: the experimenter token)."},
     {"name": "analysis", "description": "The dashboard's read models: live table, histories, curves, replays."},
     {"name": "exports", "description": "CSV files and exports.zip for analysis (described by codebook.csv)."},
+    {"name": "prolific", "description": "Reconciliation with Prolific: its submissions export against our "
+     "participants, and bonuses in its bulk-bonus format."},
     {"name": "operations", "description": "Health checks for a proxy or an orchestrator."},
 ]
 
