@@ -68,6 +68,14 @@ def list_studies(session: Session) -> list[StudyRow]:
     return list(session.scalars(select(StudyRow).order_by(StudyRow.created_at.desc(), StudyRow.id)))
 
 
+def delete_study(session: Session, *, study: StudyRow) -> None:
+    """Delete a study with its (erased) participant rows and its erasure log."""
+    session.execute(delete(ErasureRow).where(ErasureRow.study_id == study.id))
+    session.execute(delete(ParticipantRow).where(ParticipantRow.study_id == study.id))
+    session.delete(study)
+    flush(session)
+
+
 def add_study(session: Session, *, values: dict[str, Any]) -> StudyRow:
     """Insert a study."""
     row = StudyRow(**values)

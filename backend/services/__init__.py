@@ -26,7 +26,10 @@ from .notify import LocalNotifier
 from .monitoring import belief_summary, list_participants
 from .participants import answer_questionnaire, answer_quiz, finish_instructions, give_consent, join_study
 from .state import STAGES, Expect, delete_recordings, participant_state
+from .statistics import study_statistics
 from .studies import (
+    archive_study,
+    delete_study,
     ASSIGNMENTS,
     DEFAULT_CONSENT,
     DEMO_QUESTIONNAIRE,
@@ -64,6 +67,9 @@ from .viewing import (
 )
 
 __all__ = [
+    "archive_study",
+    "delete_study",
+    "study_statistics",
     "help_on",
     "restore_participant",
     "CODEBOOK_COLUMNS",

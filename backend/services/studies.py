@@ -142,7 +142,7 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "completion_url": study.completion_url, **{name: getattr(study, name) for name in CODE_FIELDS},
         "task_order": study.task_order, "quiz": study.quiz,
         "quiz_max_attempts": study.quiz_max_attempts, "timeout_minutes": study.timeout_minutes,
-        "robot_speed": study.robot_speed,
+        "robot_speed": study.robot_speed, "archived_at": iso(study.archived_at),
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }
 
@@ -161,7 +161,7 @@ def create_study(ctx: Context, spec: dict[str, Any], *, study_id: str | None = N
 
 def editable_spec(study: dict[str, Any]) -> dict[str, Any]:
     """A stored study (study_view) as the specification that would create it again."""
-    spec = {k: v for k, v in study.items() if k not in ("id", "status", "created_at", "updated_at")}
+    spec = {k: v for k, v in study.items() if k not in ("id", "status", "created_at", "updated_at", "archived_at")}
     spec["tasks"] = [{k: v for k, v in t.items() if not (k == "ground_truth" and t["key"] in TASK_FORMULAS)}
                      for t in study["tasks"]]
     return spec
@@ -218,10 +218,34 @@ def close_study(ctx: Context, study_id: str) -> dict[str, Any]:
     return _set_study_status(ctx, study_id, "closed")
 
 
-def list_studies(ctx: Context) -> list[dict[str, Any]]:
-    """Every study."""
+def list_studies(ctx: Context, *, include_archived: bool = False) -> list[dict[str, Any]]:
+    """Every study (the archived ones only if asked for)."""
     with ctx.db.read() as s:
-        return [study_view(st) for st in repo.list_studies(s)]
+        return [study_view(st) for st in repo.list_studies(s) if include_archived or st.archived_at is None]
+
+
+def archive_study(ctx: Context, study_id: str, *, archived: bool = True) -> dict[str, Any]:
+    """Hide a study from the list (closing it if open), or bring it back; nothing of it is deleted."""
+    with ctx.db.write() as s:
+        study = study_row(s, study_id, for_update=True)
+        if archived and study.status == "open":
+            study.status = "closed"
+        study.archived_at = utcnow() if archived else None
+        commit(s)
+        return study_view(study)
+
+
+def delete_study(ctx: Context, study_id: str) -> None:
+    """Delete a study that has no participants (Conflict otherwise: their data would be lost; archive it)."""
+    with ctx.db.write() as s:
+        study = study_row(s, study_id, for_update=True)
+        kept = [p for p in repo.list_participants(s, study_id=study_id) if p.stage != "erased"]
+        if kept:
+            pilots = all(p.pilot for p in kept)
+            raise Conflict(f"study {study_id!r} has {len(kept)} participant(s) whose data would be lost; "
+                           + ("reset the pilot first, or archive it" if pilots else "archive it instead"))
+        repo.delete_study(s, study=study)
+        commit(s)
 
 
 def get_study(ctx: Context, study_id: str) -> dict[str, Any]:

@@ -239,6 +239,7 @@ class StudyOut(BaseModel):
     quiz_max_attempts: int
     timeout_minutes: int | None
     robot_speed: float = 1.0
+    archived_at: str | None = Field(None, description="when the study was archived (hidden from the list)")
     created_at: str | None
     updated_at: str | None
 
@@ -294,6 +295,40 @@ class StudyPatch(Strict):
     """Any fields of a study to change (the others keep their values)."""
 
     model_config = ConfigDict(extra="allow")
+
+
+class FunnelStageOut(BaseModel):
+    stage: Literal["joined", "consented", "started", "finished_tasks", "completed"]
+    label: str
+    n: int = Field(description="participants who got at least this far")
+
+
+class CompletionTimesOut(BaseModel):
+    n: int
+    values: list[float] = Field(description="seconds from joining to completing, sorted")
+    median: float | None
+    quartiles: list[float] | None = Field(description="25th, 50th and 75th percentiles (two or more values)")
+    min: float | None
+    max: float | None
+
+
+class CellOut(BaseModel):
+    condition: str
+    task_order: list[int]
+    tasks: list[str] = Field(description="the tasks' names in that order")
+    n: int
+
+
+class StatisticsOut(BaseModel):
+    """How far participants got, how long finishing took, and the counterbalancing cells."""
+
+    study_id: str
+    n_participants: int
+    include_pilot: bool
+    funnel: list[FunnelStageOut]
+    outcomes: dict[str, int] = Field(description="participants per outcome (completed, declined_consent, ...)")
+    completion_seconds: CompletionTimesOut
+    cells: list[CellOut] = Field(description="participants per condition x task order (withdrawn left out)")
 
 
 class PilotResetOut(BaseModel):

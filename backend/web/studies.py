@@ -9,7 +9,7 @@ from .. import services
 from ..services.study_definition import FORMULA_PATTERN
 from .deps import ContextDep, Experimenter, ParticipantId
 from .schemas import (BeliefOut, ErasureOut, FormulaDescriptionOut, ParticipantBaseOut, ParticipantRowOut,
-                      PilotResetOut, StudyIn, StudyOut, error_responses)
+                      PilotResetOut, StatisticsOut, StudyIn, StudyOut, error_responses)
 
 ERRORS = error_responses(400, 401, 404, 409, 422)
 router = APIRouter(prefix="/api/v1/studies", tags=["experimenter"], dependencies=[Experimenter], responses=ERRORS)
@@ -21,9 +21,10 @@ STUDY_IN = {"requestBody": {"required": True, "content": {"application/json": {
 
 
 @router.get("", response_model=list[StudyOut])
-def list_studies(ctx: ContextDep) -> list[dict]:
-    """Every study, newest first."""
-    return services.list_studies(ctx)
+def list_studies(ctx: ContextDep, include_archived: Annotated[bool, Query(
+        description="also the archived studies")] = False) -> list[dict]:
+    """Every study, newest first (archived ones only if asked for)."""
+    return services.list_studies(ctx, include_archived=include_archived)
 
 
 @router.post("", response_model=StudyOut, status_code=status.HTTP_201_CREATED, openapi_extra=STUDY_IN)
@@ -49,6 +50,32 @@ def update_study(study_id: str, body: StudyBody, ctx: ContextDep) -> dict:
     """Change any fields of a draft study (the others keep their values); an open or closed study only its name,
     pilot flag, completion codes, completion URL and timeout (409 for the rest: clone it instead)."""
     return services.update_study(ctx, study_id, body)
+
+
+@router.delete("/{study_id}", status_code=status.HTTP_204_NO_CONTENT, response_class=Response)
+def delete_study(study_id: str, ctx: ContextDep) -> Response:
+    """Delete a study without participants (409 if it has any: archive it instead, nothing is lost)."""
+    services.delete_study(ctx, study_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.post("/{study_id}/archive", response_model=StudyOut)
+def archive_study(study_id: str, ctx: ContextDep) -> dict:
+    """Hide the study from the list (an open one is closed first); its data stay."""
+    return services.archive_study(ctx, study_id)
+
+
+@router.post("/{study_id}/unarchive", response_model=StudyOut)
+def unarchive_study(study_id: str, ctx: ContextDep) -> dict:
+    """Show an archived study in the list again (it stays closed)."""
+    return services.archive_study(ctx, study_id, archived=False)
+
+
+@router.get("/{study_id}/statistics", response_model=StatisticsOut)
+def statistics(study_id: str, ctx: ContextDep, include_pilot: Annotated[bool, Query(
+        description="also pilot participants")] = False) -> dict:
+    """Funnel by stage, completion-time distribution and condition x task-order counts."""
+    return services.study_statistics(ctx, study_id, include_pilot=include_pilot)
 
 
 @router.post("/{study_id}/clone", response_model=StudyOut, status_code=status.HTTP_201_CREATED)
