@@ -44,6 +44,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
   const addTask = (task = { key: "task1" }) => {
     const i = tasks.children.length;
     const keySelect = select("task_key", choices.taskKeys, task.key);
+    keySelect.setAttribute("aria-label", `Task ${i + 1}: which task`);
     const name = h("input", { name: "task_name", value: task.key === "custom" ? task.name ?? "" : "", placeholder: "Task name shown to participants" });
     const instructions = h("textarea", { name: "task_instructions", rows: 2, placeholder: "Instructions (empty: the formula in words)" });
     instructions.value = task.key === "custom" ? task.instructions ?? "" : "";
@@ -103,6 +104,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
   const addItem = (item = { id: "", text: "", kind: choices.itemKinds[0], required: true }) => {
     const i = items.children.length;
     const kind = select("item_kind", choices.itemKinds, item.kind);
+    kind.setAttribute("aria-label", `Item ${i + 1}: answer scale`);
     const expected = h("input", { type: "number", name: "item_expected", min: 1, max: 5, value: item.expected ?? "", size: 3 });
     const expectedField = field("Expected answer (1-5)", expected, `questionnaire.${i}.expected`);
     const sync = () => { expectedField.hidden = kind.value !== "attention"; };

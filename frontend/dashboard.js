@@ -201,6 +201,7 @@ async function studyView(studyId) {
   const head = h("div", { class: "page-head" });
   const liveBox = h("div", { id: "live" });
   const curvesBox = h("div", { id: "curves", class: "curves" }, h("p", { class: "muted" }, "Loading curves…"));
+  const statsBox = h("div", { id: "statistics-body" }, h("p", { class: "muted" }, "Loading statistics…"));
   const finishedOnly = h("input", { type: "checkbox", id: "finished-only" });
   const dropoutInput = h("input", { type: "number", id: "dropout-minutes", min: 1, step: 1, size: 5,
     value: localStorage.getItem(dropoutKey) ?? "" });
@@ -212,9 +213,14 @@ async function studyView(studyId) {
       linkInput.value = api.joinLink(study.id, { prolific: prolific.checked });
     } });
     const toggle = study.status === "open"
-      ? h("button", { id: "close-study", onclick: () => setStatus(api.closeStudy) }, "Close study")
-      : h("button", { id: "open-study", class: "primary", onclick: () => setStatus(api.openStudy) },
-        study.status === "draft" ? "Open study" : "Reopen study");
+      ? h("button", { id: "close-study", onclick: () => setStatus(api.closeStudy,
+        "Close this study? New participants can no longer join (the link shows that the study is closed); those "
+        + "under way may finish. You can reopen it later.") }, "Close study")
+      : h("button", { id: "open-study", class: "primary", onclick: () => setStatus(api.openStudy,
+        `${study.status === "draft" ? "Open" : "Reopen"} this study? Anyone with the link can join at once`
+        + (study.status === "draft" ? "; its tasks, conditions and questionnaire can no longer be edited (clone it for "
+          + "a changed copy)." : ".")) },
+      study.status === "draft" ? "Open study" : "Reopen study");
     head.replaceChildren(
       h("div", {}, h("h1", {}, study.name, " ", pill(study.status), study.pilot ? pill("pilot") : null),
         h("p", { class: "muted" }, h("code", {}, study.id), " · ",
@@ -228,7 +234,11 @@ async function studyView(studyId) {
         h("div", { class: "row small study-actions" },
           h("a", { class: "button", id: "edit-study", href: `#/study/${encodeURIComponent(study.id)}/edit` }, "Edit"),
           h("button", { id: "clone-study", onclick: cloneStudy }, "Clone"),
-          h("button", { id: "reset-pilot", onclick: resetPilot }, "Reset pilot…")),
+          h("button", { id: "reset-pilot", onclick: resetPilot }, "Reset pilot…"),
+          study.archived_at
+            ? h("button", { id: "unarchive-study", onclick: () => archive(false) }, "Unarchive")
+            : h("button", { id: "archive-study", onclick: () => archive(true) }, "Archive…"),
+          h("button", { id: "delete-study", class: "erase", onclick: deleteStudy }, "Delete…")),
         codesNote()));
   };
   const codesNote = () => (study.completion_code
@@ -238,6 +248,27 @@ async function studyView(studyId) {
       study.timeout_minutes ? ` · time-out after ${study.timeout_minutes} min` : null)
     : h("p", { class: "small warn" }, "No completion code set: each participant gets their own code, which Prolific cannot check. ",
       h("a", { href: `#/study/${encodeURIComponent(study.id)}/edit` }, "Set the codes")));
+  const archive = async (archived) => {
+    if (archived && !confirm("Archive this study? It is hidden from the list of studies (and closed if open); "
+      + "nothing of it is deleted, and you can unarchive it.")) return;
+    try {
+      study = await (archived ? api.archiveStudy(study.id) : api.unarchiveStudy(study.id));
+      toast(archived ? "Study archived" : "Study back in the list");
+      renderHead();
+    } catch (error) {
+      toast(error.detail ?? String(error), "error");
+    }
+  };
+  const deleteStudy = async () => {
+    if (!confirm(`Delete the study "${study.name}" for good? This is possible only while it has no participants.`)) return;
+    try {
+      await api.deleteStudy(study.id);
+      toast("Study deleted");
+      location.hash = "#/";
+    } catch (error) {
+      toast(error.detail ?? String(error), "error");
+    }
+  };
   const cloneStudy = async () => {
     try {
       const copy = await api.cloneStudy(study.id);
@@ -257,7 +288,8 @@ async function studyView(studyId) {
       toast(error.detail ?? String(error), "error");
     }
   };
-  const setStatus = async (call) => {
+  const setStatus = async (call, question) => {
+    if (!confirm(question)) return;
     try {
       study = await call(study.id);
       toast(`Study is now ${study.status}`);
@@ -279,6 +311,7 @@ async function studyView(studyId) {
         h("div", { class: "row small" }, h("label", { class: "inline", for: "dropout-minutes" }, "Flag as dropout after"),
           dropoutInput, h("span", {}, "min inactive"), updated)),
       liveBox),
+    h("section", { class: "card", id: "statistics" }, h("h2", {}, "Study statistics"), statsBox),
     h("section", { class: "card" },
       h("div", { class: "section-head" }, h("h2", {}, "Learning curves"),
         h("div", { class: "row small" }, h("label", { class: "inline" }, finishedOnly, "completed participants only"),
@@ -294,6 +327,7 @@ async function studyView(studyId) {
   const refreshCurves = async () => {
     try {
       renderCurves(curvesBox, await api.curves(study.id, finishedOnly.checked, includePilot.checked), study);
+      renderStatistics(statsBox, await api.statistics(study.id, includePilot.checked));
     } catch (error) {
       curvesBox.replaceChildren(errorBox(error));
     }
@@ -327,13 +361,38 @@ async function studyView(studyId) {
   });
 }
 
-function progressText(p) {
+function progressText(p, study) {
+  const index = p.step?.task_index ?? p.task_index;
   if (p.stage === "task" && p.step) {
     const step = p.step.kind === "done" ? "finishing" : `${p.step.kind} ${p.step.index + 1}/${p.step.total}`;
-    const position = p.task_order ? p.task_order.indexOf(p.step.task_index) : p.step.task_index;
-    return `task ${position + 1}/${p.n_tasks} · ${step}`;
+    const position = p.task_order ? p.task_order.indexOf(index) : index;
+    const name = study?.tasks[index]?.name ?? `task ${index + 1}`;
+    return `${name} (${position + 1}/${p.n_tasks ?? study?.tasks.length}) · ${step}`;
   }
-  return p.stage;
+  return p.stage.replace("_", " ");
+}
+
+/** The funnel, the completion times and the condition x task-order cells (GET .../statistics). */
+function renderStatistics(box, data) {
+  const top = Math.max(1, ...data.funnel.map((f) => f.n));
+  const funnel = h("table", { class: "data funnel", id: "funnel" },
+    h("caption", { class: "small muted" }, "How far participants got"),
+    h("tbody", {}, data.funnel.map((f) => h("tr", {}, h("th", { scope: "row" }, f.label),
+      h("td", { class: "num" }, f.n),
+      h("td", { class: "bar-cell" }, h("meter", { min: 0, max: top, value: f.n, "aria-label": `${f.label}: ${f.n} of ${top}` }))))));
+  const t = data.completion_seconds;
+  const times = t.n
+    ? h("p", { id: "completion-times" }, `Completion time of ${t.n} participant(s): median ${duration(t.median)}`,
+      t.quartiles ? ` (quartiles ${duration(t.quartiles[0])} – ${duration(t.quartiles[2])})` : "",
+      `, fastest ${duration(t.min)}, slowest ${duration(t.max)}.`)
+    : h("p", { class: "muted", id: "completion-times" }, "Nobody has completed the study yet.");
+  const cells = data.cells.length
+    ? h("table", { class: "data", id: "cells" }, h("caption", { class: "small muted" }, "Participants per condition and task order"),
+      h("thead", {}, h("tr", {}, ["Condition", "Task order", "Participants"].map((c) => h("th", { scope: "col" }, c)))),
+      h("tbody", {}, data.cells.map((c) => h("tr", {}, h("td", {}, c.condition), h("td", {}, c.tasks.join(" → ")),
+        h("td", { class: "num" }, c.n)))))
+    : h("p", { class: "muted" }, "No participants yet.");
+  box.replaceChildren(h("div", { class: "chart-row" }, funnel, h("div", {}, times, cells)));
 }
 
 function duration(seconds) {
@@ -403,7 +462,7 @@ function renderLive(box, data, study, refresh) {
       onclick: (e) => { if (e.target.tagName !== "A") location.hash = href; } },
     h("td", {}, h("a", { href }, `#${p.participant_id}`), p.pilot ? pill("pilot") : null),
     h("td", {}, p.condition),
-    h("td", {}, progressText(p)),
+    h("td", {}, progressText(p, study)),
     h("td", {}, pill(p.status.replace("_", " "), p.status), p.dropout ? pill("dropout") : null,
       p.attention_failed ? pill("attention failed", "flag") : null,
       p.end_reason && p.end_reason !== "withdrew" ? h("span", { class: "small muted" }, ` ${END_REASONS[p.end_reason] ?? p.end_reason}`) : null),
@@ -495,12 +554,12 @@ async function participantView(studyId, participantId) {
         h("button", { class: "erase", id: "erase-participant", onclick: () => erase(study, p, () => {
           location.hash = `#/study/${encodeURIComponent(studyId)}`;
         }) }, "Erase this participant's data"))),
-    h("dl", { class: "card facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, String(v))])),
+    h("dl", { class: "card facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, v === null || v === undefined ? "–" : String(v))])),
     ...data.tasks.map((task) => taskSection(task, studyId, participantId)),
     data.tasks.length ? null : h("p", { class: "card muted" }, "This participant has not started a task yet."),
     data.questionnaire.length ? h("section", { class: "card" }, h("h2", {}, "Questionnaire"),
       h("table", { class: "data", id: "answers" }, h("tbody", {}, data.questionnaire.map((a) =>
-        h("tr", {}, h("td", {}, a.text ?? a.item_id), h("td", { class: "answer" }, String(a.answer))))))) : null,
+        h("tr", {}, h("td", {}, a.text ?? a.item_id), h("td", { class: "answer" }, a.answer === null || a.answer === undefined ? "(no answer)" : String(a.answer))))))) : null,
     h("details", { class: "card" }, h("summary", {}, `Event log (${data.events.length} events)`),
       h("table", { class: "data small", id: "events" },
         h("thead", {}, h("tr", {}, ["#", "Time", "Kind", "Task", "Step", "Details"].map((c) => h("th", {}, c)))),
@@ -539,7 +598,7 @@ function taskSection(task, studyId, participantId) {
   const inspector = h("div", { class: "inspector" });
   const replayBox = h("div", { class: "replay-box" });
   const beliefBox = h("div", {});
-  const stepButtons = h("div", { class: "segmented", role: "tablist", "aria-label": "learning step" });
+  const stepButtons = h("div", { class: "segmented", role: "group", "aria-label": "learning step" });
   inspector.append(replayBox, h("div", { class: "inspector-head" }, h("h3", {}, "Belief after step"), stepButtons), beliefBox);
   const rows = [];
   const select = (k) => {
