@@ -58,7 +58,7 @@ export async function checkToken(candidate) {
   return request("GET", `${API}/studies`, { bearer: candidate });
 }
 
-export const listStudies = () => request("GET", `${API}/studies`);
+export const listStudies = (includeArchived = false) => request("GET", `${API}/studies?include_archived=${includeArchived}`);
 export const getStudy = (id) => request("GET", `${API}/studies/${enc(id)}`);
 export const createStudy = (spec) => request("POST", `${API}/studies`, { body: spec });
 export const openStudy = (id) => request("POST", `${API}/studies/${enc(id)}/open`);

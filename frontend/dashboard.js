@@ -153,17 +153,20 @@ function loginView(message = null) {
 
 async function studiesView() {
   setCrumbs({ text: "Studies" });
-  const studies = await api.listStudies();
+  const showArchived = location.hash.includes("archived");
+  const studies = await api.listStudies(showArchived);
   const rows = studies.map((s) => h("tr", { class: "clickable", onclick: () => { location.hash = `#/study/${encodeURIComponent(s.id)}`; } },
     h("td", {}, h("a", { href: `#/study/${encodeURIComponent(s.id)}` }, s.name), s.pilot ? pill("pilot") : null),
     h("td", {}, h("code", {}, s.id)),
-    h("td", {}, pill(s.status)),
+    h("td", {}, pill(s.status), s.archived_at ? pill("archived", "muted") : null),
     h("td", {}, s.tasks.map((t) => t.key).join(", ")),
     h("td", {}, s.conditions.join(", "), h("span", { class: "muted" }, ` (${s.assignment})`)),
     h("td", {}, when(s.created_at))));
   app.replaceChildren(
     h("div", { class: "page-head" }, h("h1", {}, "Studies"),
-      h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study")),
+      h("div", { class: "row" }, h("a", { href: showArchived ? "#/" : "#/?archived", id: "toggle-archived" },
+        showArchived ? "Hide archived studies" : "Show archived studies"),
+      h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study"))),
     studies.length
       ? h("table", { class: "data", id: "studies" },
         h("thead", {}, h("tr", {}, ["Name", "Id", "Status", "Tasks", "Conditions", "Created"].map((c) => h("th", {}, c)))),

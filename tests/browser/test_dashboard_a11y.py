@@ -102,6 +102,13 @@ def test_statistics_archive_and_confirmations_in_the_dashboard(trace_server: Any
     page.click("#archive-study")
     page.wait_for_selector("#unarchive-study")
     assert exp.get_study(study)["archived_at"] and study not in [s["id"] for s in exp.list_studies()]
+    page.goto(f"{server.url}/dashboard#/")
+    page.wait_for_selector("#toggle-archived")
+    assert study not in page.text_content("#app")
+    page.click("#toggle-archived")
+    page.wait_for_selector(f"text={study}")
+    page.goto(f"{server.url}/dashboard#/study/{study}")
+    page.wait_for_selector("#unarchive-study")
     page.once("dialog", lambda dialog: dialog.accept())
     page.click("#delete-study")
     page.wait_for_selector("#toast:not([hidden])")
