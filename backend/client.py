@@ -7,12 +7,15 @@ robot execute each query and test, and assesses the trace the server reports.
 
 from __future__ import annotations
 
+import io
 import time
 import uuid
+import zipfile
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+from urllib.parse import quote
 
 import httpx
 import numpy as np
@@ -21,67 +24,97 @@ from .core.domain import DINNER_TASK_FORMULAS, get_domain
 from .core.metrics import similarity
 from .core.teachers import SimulatedTeacher
 
-RETRIES = 4
+RETRIES = 4  # attempts per request: network errors, 503 (database busy) and 429 (too many wrong keys)
+MAX_WAIT = 30.0  # seconds: the longest Retry-After honoured before giving up
 
 
 class ApiError(Exception):
     """The server refused a request: status, its message and (for 409) the current state."""
 
-    def __init__(self, status: int, detail: str, state: dict[str, Any] | None = None) -> None:
+    def __init__(self, status: int, detail: str, state: dict[str, Any] | None = None,
+                 errors: list[dict[str, str]] | None = None) -> None:
         super().__init__(f"HTTP {status}: {detail}")
-        self.status, self.detail, self.state = status, detail, state
+        self.status, self.detail, self.state, self.errors = status, detail, state, errors
+
+
+def retry_after(response: httpx.Response, attempt: int) -> float:
+    """Seconds to wait before retrying a 503 or 429: its Retry-After (seconds), else a short backoff."""
+    try:
+        return min(MAX_WAIT, max(0.0, float(response.headers.get("Retry-After", ""))))
+    except ValueError:
+        return min(MAX_WAIT, 0.2 * 2**attempt)
 
 
 class _Base:
-    """Shared HTTP plumbing: JSON, error decoding, retries of idempotent attempts on network errors."""
+    """Shared HTTP plumbing: JSON, error decoding, bounded retries of network errors, 503 and 429 (honouring
+    Retry-After) for requests that are safe to repeat (GETs, and POSTs with an Idempotency-Key)."""
 
     def __init__(self, server: str, *, token: str | None = None, timeout: float = 30.0,
-                 on_request: Callable[[str, float, int], None] | None = None) -> None:
+                 on_request: Callable[[str, float, int], None] | None = None,
+                 sleep: Callable[[float], None] = time.sleep) -> None:
         self.server = server.rstrip("/")
         self.http = httpx.Client(base_url=self.server, timeout=timeout)
         self.token = token
         self.on_request = on_request
+        self.sleep = sleep
 
     def close(self) -> None:
         """Close the connection pool."""
         self.http.close()
 
-    def _request(self, method: str, path: str, *, json: Any = None, key: str | None = None) -> httpx.Response:
+    def __enter__(self) -> _Base:
+        return self
+
+    def __exit__(self, *_exc: object) -> None:
+        self.close()
+
+    def _request(self, method: str, path: str, *, json: Any = None, key: str | None = None,
+                 params: dict[str, Any] | None = None) -> httpx.Response:
         headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
         if key is not None:
             headers["Idempotency-Key"] = key
+        repeatable = method in ("GET", "DELETE") or key is not None
         for attempt in range(RETRIES):
             started = time.perf_counter()
             try:
-                response = self.http.request(method, path, json=json, headers=headers)
+                response = self.http.request(method, path, json=json, headers=headers, params=params)
             except httpx.TransportError:
                 # Safe to resend: GETs change nothing and POSTs carry the same Idempotency-Key.
-                if attempt == RETRIES - 1 or (method != "GET" and key is None):
+                if attempt == RETRIES - 1 or not repeatable:
                     raise
-                time.sleep(0.2 * 2**attempt)
+                self.sleep(0.2 * 2**attempt)
                 continue
             if self.on_request is not None:
                 self.on_request(f"{method} {path}", time.perf_counter() - started, response.status_code)
+            # 429 is answered before anything is done; 503 means nothing was stored (safe when repeatable).
+            busy = response.status_code == 429 or (response.status_code == 503 and repeatable)
+            if busy and attempt < RETRIES - 1:
+                self.sleep(retry_after(response, attempt))
+                continue
             if response.status_code >= 400:
                 try:
                     body = response.json()
                 except ValueError:
                     body = {"detail": response.text}
-                raise ApiError(response.status_code, str(body.get("detail")), body.get("state"))
+                raise ApiError(response.status_code, str(body.get("detail")), body.get("state"), body.get("errors"))
             return response
         raise AssertionError("unreachable")
 
-    def _json(self, method: str, path: str, body: Any = None, *, idempotent: bool = True) -> Any:
+    def _json(self, method: str, path: str, body: Any = None, *, idempotent: bool = True,
+              params: dict[str, Any] | None = None) -> Any:
         key = str(uuid.uuid4()) if method == "POST" and idempotent else None
-        return self._request(method, path, json=body, key=key).json()
+        response = self._request(method, path, json=body, key=key, params=params)
+        return None if response.status_code == 204 else response.json()
 
 
 class ParticipantClient(_Base):
-    """The participant API (the token comes from join())."""
+    """The participant API, every endpoint (the token comes from join())."""
 
-    def join(self, study_id: str, *, prolific_pid: str | None = None, session_id: str | None = None) -> dict[str, Any]:
+    def join(self, study_id: str, *, prolific_pid: str | None = None, session_id: str | None = None,
+             external_study_id: str | None = None) -> dict[str, Any]:
         """Join a study; remembers the token. Rejoining with a prolific_pid needs the same session_id (or client)."""
-        body = {k: v for k, v in (("prolific_pid", prolific_pid), ("session_id", session_id)) if v}
+        body = {k: v for k, v in (("prolific_pid", prolific_pid), ("session_id", session_id),
+                                  ("study_id", external_study_id)) if v}
         out = self._request("POST", f"/api/v1/studies/{study_id}/join", json=body).json()
         self.token = out["token"]
         return out
@@ -91,12 +124,16 @@ class ParticipantClient(_Base):
         return self._json("GET", "/api/v1/me")
 
     def consent(self, version: str, agree: bool = True) -> dict[str, Any]:
-        """Agree to the consent text of this version."""
+        """Agree to (or decline) the consent text of this version."""
         return self._json("POST", "/api/v1/me/consent", {"agree": agree, "consent_version": version})
 
     def instructions(self) -> dict[str, Any]:
         """Mark the instructions as read."""
         return self._json("POST", "/api/v1/me/instructions")
+
+    def quiz(self, answers: dict[str, int]) -> dict[str, Any]:
+        """Answer the comprehension quiz (item id -> number of the chosen option, from 0)."""
+        return self._json("POST", "/api/v1/me/quiz", {"answers": answers})
 
     def place(self, obj: str, guard: dict[str, Any] | None = None) -> dict[str, Any]:
         """Place an object during a demonstration."""
@@ -110,6 +147,10 @@ class ParticipantClient(_Base):
         """Let the robot carry out the current query or test."""
         return self._json("POST", "/api/v1/me/execution", guard or {})
 
+    def replay_execution(self, guard: dict[str, Any] | None = None) -> dict[str, Any]:
+        """Watch the robot's finished execution again (logged as replay_watched)."""
+        return self._json("POST", "/api/v1/me/execution/replay", guard or {})
+
     def assess(self, acceptable: bool | None, guard: dict[str, Any] | None = None) -> dict[str, Any]:
         """Judge the robot's finished execution."""
         return self._json("POST", "/api/v1/me/assessment", {"acceptable": acceptable, **(guard or {})})
@@ -118,44 +159,145 @@ class ParticipantClient(_Base):
         """Answer the questionnaire."""
         return self._json("POST", "/api/v1/me/questionnaire", {"answers": answers})
 
+    def withdraw(self) -> dict[str, Any]:
+        """Withdraw (after consent): the participant's recorded data are deleted."""
+        return self._json("POST", "/api/v1/me/withdraw")
+
+    def view(self) -> dict[str, Any]:
+        """The 3D view of the current step: {available, url}."""
+        return self._json("POST", "/api/v1/me/view", idempotent=False)
+
+    def robot(self) -> dict[str, Any]:
+        """Whether the robot is moving and what it is doing."""
+        return self._json("GET", "/api/v1/me/robot")
+
+    def claim_tab(self, tab_id: str, *, takeover: bool = False) -> dict[str, Any]:
+        """Hold (or take over) the page's one-tab lease."""
+        return self._json("POST", "/api/v1/me/tab", {"tab_id": tab_id, "takeover": takeover}, idempotent=False)
+
+    def release_tab(self, tab_id: str) -> None:
+        """Free the page's lease at once."""
+        self._request("POST", "/api/v1/me/tab/release", json={"tab_id": tab_id})
+
 
 class ExperimenterClient(_Base):
-    """The experimenter API (token: the server's experimenter secret)."""
+    """The experimenter API, every endpoint (token: the server's experimenter secret)."""
+
+    def _study(self, study_id: str, tail: str = "") -> str:
+        return f"/api/v1/studies/{quote(study_id, safe='')}{tail}"
+
+    def health(self) -> dict[str, Any]:
+        """The server's health check."""
+        return self._json("GET", "/healthz")
+
+    def list_studies(self) -> list[dict[str, Any]]:
+        """Every study, newest first."""
+        return self._json("GET", "/api/v1/studies")
+
+    def get_study(self, study_id: str) -> dict[str, Any]:
+        """One study."""
+        return self._json("GET", self._study(study_id))
+
+    def study_spec(self, study_id: str) -> dict[str, Any]:
+        """The study as the definition that would create it again."""
+        return self._json("GET", self._study(study_id, "/spec"))
 
     def create_study(self, spec: dict[str, Any]) -> dict[str, Any]:
         """Create a study (draft)."""
         return self._json("POST", "/api/v1/studies", spec, idempotent=False)
 
+    def update_study(self, study_id: str, changes: dict[str, Any]) -> dict[str, Any]:
+        """Change some fields of a study (an open one: only its live fields)."""
+        return self._json("PATCH", self._study(study_id), changes)
+
+    def clone_study(self, study_id: str) -> dict[str, Any]:
+        """A draft copy of a study."""
+        return self._json("POST", self._study(study_id, "/clone"), idempotent=False)
+
     def open_study(self, study_id: str) -> dict[str, Any]:
         """Open a study."""
-        return self._json("POST", f"/api/v1/studies/{study_id}/open", idempotent=False)
+        return self._json("POST", self._study(study_id, "/open"), idempotent=False)
 
     def close_study(self, study_id: str) -> dict[str, Any]:
         """Close a study."""
-        return self._json("POST", f"/api/v1/studies/{study_id}/close", idempotent=False)
+        return self._json("POST", self._study(study_id, "/close"), idempotent=False)
+
+    def reset_pilot(self, study_id: str) -> dict[str, Any]:
+        """Erase every pilot participant of a study."""
+        return self._json("POST", self._study(study_id, "/pilot/reset"), idempotent=False)
 
     def participants(self, study_id: str) -> list[dict[str, Any]]:
         """Participants with live status."""
-        return self._json("GET", f"/api/v1/studies/{study_id}/participants")
+        return self._json("GET", self._study(study_id, "/participants"))
+
+    def erase_participant(self, study_id: str, participant_id: int) -> None:
+        """Erase one participant's data (an audit entry is kept)."""
+        self._request("DELETE", self._study(study_id, f"/participants/{int(participant_id)}"))
+
+    def restore_participant(self, study_id: str, participant_id: int) -> dict[str, Any]:
+        """Bring back a participant who timed out or was screened out."""
+        return self._json("POST", self._study(study_id, f"/participants/{int(participant_id)}/restore"),
+                          idempotent=False)
+
+    def help_participant(self, study_id: str, participant_id: int) -> dict[str, Any]:
+        """Move a stuck participant past their stage."""
+        return self._json("POST", self._study(study_id, f"/participants/{int(participant_id)}/help"),
+                          idempotent=False)
+
+    def erasures(self, study_id: str) -> list[dict[str, Any]]:
+        """The study's erasure audit log."""
+        return self._json("GET", self._study(study_id, "/erasures"))
 
     def belief(self, study_id: str, participant_id: int) -> dict[str, Any]:
         """A participant's belief summary."""
-        return self._json("GET", f"/api/v1/studies/{study_id}/participants/{participant_id}/belief")
+        return self._json("GET", self._study(study_id, f"/participants/{int(participant_id)}/belief"))
+
+    def live(self, study_id: str, *, dropout_minutes: float | None = None) -> dict[str, Any]:
+        """The dashboard's live table."""
+        params = {} if dropout_minutes is None else {"dropout_minutes": dropout_minutes}
+        return self._json("GET", self._study(study_id, "/live"), params=params)
+
+    def history(self, study_id: str, participant_id: int) -> dict[str, Any]:
+        """One participant's events, executions and beliefs."""
+        return self._json("GET", self._study(study_id, f"/participants/{int(participant_id)}/history"))
+
+    def curves(self, study_id: str, *, finished_only: bool = False, include_pilot: bool = False) -> dict[str, Any]:
+        """Learning curves per condition."""
+        return self._json("GET", self._study(study_id, "/curves"),
+                          params={"finished_only": finished_only, "include_pilot": include_pilot})
+
+    def replay(self, study_id: str, participant_id: int, task_index: int, step_kind: str,
+               step_index: int) -> dict[str, Any]:
+        """A recorded robot motion of one step."""
+        return self._json("GET", self._study(study_id, f"/participants/{int(participant_id)}/replays/"
+                                             f"{int(task_index)}/{quote(step_kind)}/{int(step_index)}"))
+
+    def describe_formula(self, formula: str) -> dict[str, Any]:
+        """A formula in canonical form and in plain words."""
+        return self._json("GET", "/api/v1/formulas/describe", params={"formula": formula})
 
     def export(self, study_id: str, name: str, *, include_pilot: bool = False) -> str:
-        """One CSV export as text (pilot participants only if include_pilot)."""
-        query = "?include_pilot=true" if include_pilot else ""
-        return self._request("GET", f"/api/v1/studies/{study_id}/exports/{name}.csv{query}").text
+        """One CSV export (or codebook) as text (pilot participants only if include_pilot)."""
+        return self._request("GET", self._study(study_id, f"/exports/{quote(name)}.csv"),
+                             params={"include_pilot": include_pilot}).text
+
+    def export_zip(self, study_id: str, *, include_pilot: bool = False) -> bytes:
+        """exports.zip: every CSV, the codebook, datapackage.json and study.json."""
+        return self._request("GET", self._study(study_id, "/exports/exports.zip"),
+                             params={"include_pilot": include_pilot}).content
 
     def export_all(self, study_id: str, out_dir: str | Path, *, include_pilot: bool = False) -> dict[str, int]:
-        """Download every CSV export and the codebook into a folder; rows per file (header excluded)."""
+        """Every file of exports.zip into a folder (the CSVs, codebook.csv, study.json...); rows per CSV (header
+        excluded)."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         rows = {}
-        for name in ("participants", "events", "steps", "beliefs", "questionnaire", "codebook"):
-            text = self.export(study_id, name, include_pilot=include_pilot)
-            (out / f"{name}.csv").write_text(text, encoding="utf-8")
-            rows[name] = max(0, text.count("\r\n") - 1)
+        with zipfile.ZipFile(io.BytesIO(self.export_zip(study_id, include_pilot=include_pilot))) as archive:
+            for name in archive.namelist():
+                data = archive.read(name)
+                (out / Path(name).name).write_bytes(data)
+                if name.endswith(".csv"):
+                    rows[name.removesuffix(".csv")] = max(0, data.count(b"\r\n") - 1)
         return rows
 
 
@@ -192,7 +334,28 @@ def _guard(state: dict[str, Any]) -> dict[str, Any]:
             "step_index": state["step"]["index"]}
 
 
-def _answers(items: list[dict[str, Any]], rng: np.random.Generator) -> dict[str, Any]:
+@dataclass
+class StudyKnowledge:
+    """What a scripted teacher knows of the study beforehand: the quiz's answers and the attention checks'
+    expected answers (from the study definition, given the experimenter token, or from the command line)."""
+
+    quiz_answers: dict[str, int] = field(default_factory=dict)
+    attention: dict[str, int] = field(default_factory=dict)
+    attention_fail_rate: float = 0.0
+    n_tasks: int | None = None
+    has_quiz: bool | None = None
+
+    @classmethod
+    def of_study(cls, spec: dict[str, Any], *, attention_fail_rate: float = 0.0) -> StudyKnowledge:
+        """From a study definition (GET /studies/{id}/spec)."""
+        return cls(quiz_answers={q["id"]: q["correct"] for q in spec.get("quiz") or []},
+                   attention={i["id"]: i["expected"] for i in spec.get("questionnaire") or []
+                              if i.get("kind") == "attention"},
+                   attention_fail_rate=attention_fail_rate, n_tasks=len(spec.get("tasks") or []),
+                   has_quiz=bool(spec.get("quiz")))
+
+
+def _answers(items: list[dict[str, Any]], rng: np.random.Generator, knows: StudyKnowledge) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for item in items:
         if item["kind"] == "likert5":
@@ -200,20 +363,51 @@ def _answers(items: list[dict[str, Any]], rng: np.random.Generator) -> dict[str,
         elif item["kind"] == "rating10":
             out[item["id"]] = int(rng.integers(6, 11))
         elif item["kind"] == "attention":
-            out[item["id"]] = int(rng.integers(1, 6))  # the expected answer stays on the server
+            expected = knows.attention.get(item["id"])
+            if expected is None:  # not told the expected answer (it stays on the server): a guess
+                out[item["id"]] = int(rng.integers(1, 6))
+            elif rng.random() < knows.attention_fail_rate:
+                out[item["id"]] = int(rng.choice([v for v in range(1, 6) if v != expected]))
+            else:
+                out[item["id"]] = int(expected)
         else:
             out[item["id"]] = "=scripted teacher"  # starts like a formula on purpose: exports must escape it
     return out
 
 
+def cannot_finish(knows: StudyKnowledge, ground_truths: list[str]) -> str | None:
+    """Why a scripted teacher could not finish this study (checked before joining), or None."""
+    if knows.n_tasks is not None and len(ground_truths) not in (1, knows.n_tasks):
+        return (f"the study has {knows.n_tasks} tasks but {len(ground_truths)} ground truths were given; give one "
+                "for all tasks or one per task")
+    if knows.has_quiz and not knows.quiz_answers:
+        return "the study has a comprehension quiz and its answers are unknown; give the experimenter token"
+    return None
+
+
+def session_timeout(state: dict[str, Any], given: float | None) -> float:
+    """Seconds a session may take: as given, else three times the server's own estimate (progress.minutes_left,
+    which counts the robot's motion at the study's speed), at least 10 minutes."""
+    if given is not None:
+        return given
+    minutes = (state.get("progress") or {}).get("minutes_left") or 10
+    return max(600.0, 3 * 60.0 * minutes)
+
+
 def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: float = 0.0, seed: int = 0,
                 prolific_pid: str | None = None, session_id: str | None = None, poll_seconds: float = 0.02,
-                timeout: float = 300.0,
+                timeout: float | None = None, knows: StudyKnowledge | None = None,
                 on_request: Callable[[str, float, int], None] | None = None,
                 client: ParticipantClient | None = None, stop_after: int | None = None) -> TeacherRun:
     """Complete a participant session as the simulated teacher (one ground truth per task, or one for all).
 
-    stop_after: leave after that many actions (to test resuming); the run is then unfinished."""
+    knows: the quiz's and attention checks' answers (StudyKnowledge.of_study); ValueError before joining if the
+    study cannot be finished with what is known. timeout: seconds for the whole session (default: fitted to the
+    server's estimate, session_timeout). stop_after: leave after that many actions (to test resuming)."""
+    knows = knows or StudyKnowledge()
+    problem = cannot_finish(knows, ground_truths)
+    if problem is not None:
+        raise ValueError(f"not joining: {problem}")
     domain = get_domain("dinner")
     teachers = [SimulatedTeacher(domain, truth_mask(g), noise) for g in ground_truths]
     rng = np.random.default_rng(seed)
@@ -227,9 +421,10 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
 
     api = client or ParticipantClient(server, on_request=count)
     api.on_request = count
-    deadline = time.monotonic() + timeout
     state = api.state() if api.token else api.join(study_id, prolific_pid=prolific_pid, session_id=session_id)["state"]
     run.participant_id, run.token = state["participant_id"], api.token
+    timeout = session_timeout(state, timeout)
+    deadline = time.monotonic() + timeout
     while state["stage"] not in ("done", "withdrawn", "screened_out"):
         if time.monotonic() > deadline:
             raise TimeoutError(f"the session did not finish within {timeout} s (stage {state['stage']})")
@@ -243,9 +438,15 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
             state = api.instructions()
             run.actions.append({"kind": "instructions"})
         elif stage == "quiz":
-            raise ValueError("this study has a comprehension quiz; the scripted teacher does not know its answers")
+            items = state["quiz"]["items"]
+            missing = [q["id"] for q in items if q["id"] not in knows.quiz_answers]
+            if missing:
+                raise ValueError(f"no answer to quiz item(s) {', '.join(missing)}; give the experimenter token or "
+                                 "--quiz-answers")
+            state = api.quiz({q["id"]: knows.quiz_answers[q["id"]] for q in items})
+            run.actions.append({"kind": "quiz"})
         elif stage == "questionnaire":
-            answers = _answers(state["questionnaire"], rng)
+            answers = _answers(state["questionnaire"], rng, knows)
             state = api.questionnaire(answers)
             run.actions.append({"kind": "questionnaire", "answers": answers})
         else:

@@ -69,15 +69,22 @@ export async function auditCsv() {
   return { filename: "audit.csv", blob: await response.blob() };
 }
 
-export const listStudies = () => request("GET", `${API}/studies`);
+export const listStudies = (includeArchived = false) => request("GET", `${API}/studies?include_archived=${includeArchived}`);
 export const getStudy = (id) => request("GET", `${API}/studies/${enc(id)}`);
 export const createStudy = (spec) => request("POST", `${API}/studies`, { body: spec });
 export const openStudy = (id) => request("POST", `${API}/studies/${enc(id)}/open`);
 export const closeStudy = (id) => request("POST", `${API}/studies/${enc(id)}/close`);
 export const updateStudy = (id, changes) => request("PATCH", `${API}/studies/${enc(id)}`, { body: changes });
+export const archiveStudy = (id) => request("POST", `${API}/studies/${enc(id)}/archive`);
+export const unarchiveStudy = (id) => request("POST", `${API}/studies/${enc(id)}/unarchive`);
+export const deleteStudy = (id) => request("DELETE", `${API}/studies/${enc(id)}`);
+export const statistics = (id, includePilot = false) =>
+  request("GET", `${API}/studies/${enc(id)}/statistics?include_pilot=${includePilot}`);
 export const cloneStudy = (id) => request("POST", `${API}/studies/${enc(id)}/clone`);
 export const resetPilot = (id) => request("POST", `${API}/studies/${enc(id)}/pilot/reset`);
 export const eraseParticipant = (id, pid) => request("DELETE", `${API}/studies/${enc(id)}/participants/${enc(pid)}`);
+export const restoreParticipant = (id, pid) => request("POST", `${API}/studies/${enc(id)}/participants/${enc(pid)}/restore`);
+export const helpParticipant = (id, pid) => request("POST", `${API}/studies/${enc(id)}/participants/${enc(pid)}/help`);
 export const describeFormula = (formula) => request("GET", `${API}/formulas/describe?formula=${enc(formula)}`);
 
 export function live(id, dropoutMinutes) {

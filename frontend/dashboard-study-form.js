@@ -6,8 +6,13 @@ import * as api from "./dashboard-api.js";
 import { h } from "./dom.js";
 
 // What can change once participants can join (services/studies.py LIVE_FIELDS).
-export const LIVE_FIELDS = ["name", "pilot", "completion_code", "screened_out_code", "completion_url", "timeout_minutes",
-  "places"];
+// One completion code per outcome (services/outcomes.py); the older single screened-out code is kept for old studies.
+export const OUTCOME_CODES = [
+  ["completion_code", "Completed"], ["declined_consent_code", "Declined consent"],
+  ["failed_quiz_code", "Failed the quiz"], ["failed_attention_code", "Failed an attention check"],
+  ["timed_out_code", "Timed out"], ["withdrew_code", "Withdrew (optional)"]];
+const CODE_FIELDS = [...OUTCOME_CODES.map(([name]) => name), "screened_out_code"];
+export const LIVE_FIELDS = ["name", "pilot", ...CODE_FIELDS, "completion_url", "timeout_minutes", "places"];
 const TASK_HINT = "e.g. F(bowl) & (!fork U knife)";
 
 function removeButton() {
@@ -39,6 +44,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
   const addTask = (task = { key: "task1" }) => {
     const i = tasks.children.length;
     const keySelect = select("task_key", choices.taskKeys, task.key);
+    keySelect.setAttribute("aria-label", `Task ${i + 1}: which task`);
     const name = h("input", { name: "task_name", value: task.key === "custom" ? task.name ?? "" : "", placeholder: "Task name shown to participants" });
     const instructions = h("textarea", { name: "task_instructions", rows: 2, placeholder: "Instructions (empty: the formula in words)" });
     instructions.value = task.key === "custom" ? task.instructions ?? "" : "";
@@ -98,6 +104,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
   const addItem = (item = { id: "", text: "", kind: choices.itemKinds[0], required: true }) => {
     const i = items.children.length;
     const kind = select("item_kind", choices.itemKinds, item.kind);
+    kind.setAttribute("aria-label", `Item ${i + 1}: answer scale`);
     const expected = h("input", { type: "number", name: "item_expected", min: 1, max: 5, value: item.expected ?? "", size: 3 });
     const expectedField = field("Expected answer (1-5)", expected, `questionnaire.${i}.expected`);
     const sync = () => { expectedField.hidden = kind.value !== "attention"; };
@@ -147,8 +154,9 @@ export function studyFormView({ choices, study = null, onSaved }) {
         return item;
       }),
       consent_text: optional(f.get("consent_text")), consent_version: optional(f.get("consent_version")),
-      completion_url: optional(f.get("completion_url")), completion_code: optional(f.get("completion_code")),
-      screened_out_code: optional(f.get("screened_out_code")), timeout_minutes: int("timeout_minutes"),
+      completion_url: optional(f.get("completion_url")),
+      ...Object.fromEntries(CODE_FIELDS.map((name) => [name, optional(f.get(name))])),
+      timeout_minutes: int("timeout_minutes"),
       places: int("places"),
       robot_speed: optional(f.get("robot_speed")) === null ? undefined : Number(f.get("robot_speed")),
       pilot: Boolean(f.get("pilot")),
@@ -227,10 +235,13 @@ export function studyFormView({ choices, study = null, onSaved }) {
     h("fieldset", { "data-live": "yes" }, h("legend", {}, "Completion on Prolific"),
       field("Completion redirect ({code} is replaced)", h("input", { name: "completion_url", id: "completion_url",
         value: study?.completion_url ?? "", placeholder: "https://app.prolific.com/submissions/complete?cc={code}" }), "completion_url", { cls: "wide" }),
+      h("p", { class: "small muted" }, "One code per outcome, each from Prolific's list of completion codes (empty: no code for it)."),
+      h("div", { class: "row codes" },
+        OUTCOME_CODES.map(([name, label]) => field(label, h("input", { name, id: name, value: study?.[name] ?? "" }), name)),
+        study?.screened_out_code ? field("Screened-out code (older studies: for outcomes without their own code)",
+          h("input", { name: "screened_out_code", id: "screened_out_code", value: study.screened_out_code }), "screened_out_code") : null),
       h("div", { class: "row" },
-        field("Completion code (from Prolific)", h("input", { name: "completion_code", id: "completion_code", value: study?.completion_code ?? "" }), "completion_code"),
-        field("Screened-out code", h("input", { name: "screened_out_code", id: "screened_out_code", value: study?.screened_out_code ?? "" }), "screened_out_code"),
-        field("Time-out after (minutes idle, empty: never)", h("input", { type: "number", name: "timeout_minutes", id: "timeout_minutes", min: 1, max: 1440, value: study?.timeout_minutes ?? "" }), "timeout_minutes"),
+        field(editing && study.status !== "draft" ? "Time-out after (minutes idle, empty: never; a change counts idleness from the change)" : "Time-out after (minutes idle, empty: never)", h("input", { type: "number", name: "timeout_minutes", id: "timeout_minutes", min: 1, max: 1440, value: study?.timeout_minutes ?? "" }), "timeout_minutes"),
         field("Places (participants; empty: no limit)", h("input", { type: "number", name: "places", id: "places", min: 1, max: 100000, value: study?.places ?? "" }), "places")),
       h("label", { class: "inline" }, checkbox("pilot", d.pilot), "Pilot: participants who join now are flagged as pilots")),
     h("div", { class: "row" }, h("button", { type: "submit", class: "primary", id: "create" }, editing ? "Save changes" : "Create study"),

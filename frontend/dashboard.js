@@ -5,7 +5,7 @@
 import * as api from "./dashboard-api.js";
 import { PALETTE, lineChart, quatYaw, tableView } from "./charts.js";
 import { h, pretty } from "./dom.js";
-import { studyFormView } from "./dashboard-study-form.js";
+import { OUTCOME_CODES, studyFormView } from "./dashboard-study-form.js";
 
 const POLL_MS = 4000;
 const app = document.getElementById("app");
@@ -211,18 +211,21 @@ async function auditView() {
 
 async function studiesView() {
   setCrumbs({ text: "Studies" });
-  const studies = await api.listStudies();
+  const showArchived = location.hash.includes("archived");
+  const studies = await api.listStudies(showArchived);
   const rows = studies.map((s) => h("tr", { class: "clickable", onclick: () => { location.hash = `#/study/${encodeURIComponent(s.id)}`; } },
     h("td", {}, h("a", { href: `#/study/${encodeURIComponent(s.id)}` }, s.name), s.pilot ? pill("pilot") : null),
     h("td", {}, h("code", {}, s.id)),
-    h("td", {}, pill(s.status)),
+    h("td", {}, pill(s.status), s.archived_at ? pill("archived", "muted") : null),
     h("td", {}, s.tasks.map((t) => t.key).join(", ")),
     h("td", {}, s.conditions.join(", "), h("span", { class: "muted" }, ` (${s.assignment})`)),
     h("td", {}, when(s.created_at))));
   app.replaceChildren(
     h("div", { class: "page-head" }, h("h1", {}, "Studies"),
-      h("div", { class: "row" }, h("a", { class: "button", href: "#/audit", id: "audit-link" }, "Audit log"),
-        h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study"))),
+      h("div", { class: "row" }, h("a", { href: showArchived ? "#/" : "#/?archived", id: "toggle-archived" },
+        showArchived ? "Hide archived studies" : "Show archived studies"),
+      h("a", { class: "button", href: "#/audit", id: "audit-link" }, "Audit log"),
+      h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study"))),
     studies.length
       ? h("table", { class: "data", id: "studies" },
         h("thead", {}, h("tr", {}, ["Name", "Id", "Status", "Tasks", "Conditions", "Created"].map((c) => h("th", {}, c)))),
@@ -260,6 +263,7 @@ async function studyView(studyId) {
   const head = h("div", { class: "page-head" });
   const liveBox = h("div", { id: "live" });
   const curvesBox = h("div", { id: "curves", class: "curves" }, h("p", { class: "muted" }, "Loading curves…"));
+  const statsBox = h("div", { id: "statistics-body" }, h("p", { class: "muted" }, "Loading statistics…"));
   const finishedOnly = h("input", { type: "checkbox", id: "finished-only" });
   const dropoutInput = h("input", { type: "number", id: "dropout-minutes", min: 1, step: 1, size: 5,
     value: localStorage.getItem(dropoutKey) ?? "" });
@@ -271,9 +275,14 @@ async function studyView(studyId) {
       linkInput.value = api.joinLink(study.id, { prolific: prolific.checked });
     } });
     const toggle = study.status === "open"
-      ? h("button", { id: "close-study", onclick: () => setStatus(api.closeStudy) }, "Close study")
-      : h("button", { id: "open-study", class: "primary", onclick: () => setStatus(api.openStudy) },
-        study.status === "draft" ? "Open study" : "Reopen study");
+      ? h("button", { id: "close-study", onclick: () => setStatus(api.closeStudy,
+        "Close this study? New participants can no longer join (the link shows that the study is closed); those "
+        + "under way may finish. You can reopen it later.") }, "Close study")
+      : h("button", { id: "open-study", class: "primary", onclick: () => setStatus(api.openStudy,
+        `${study.status === "draft" ? "Open" : "Reopen"} this study? Anyone with the link can join at once`
+        + (study.status === "draft" ? "; its tasks, conditions and questionnaire can no longer be edited (clone it for "
+          + "a changed copy)." : ".")) },
+      study.status === "draft" ? "Open study" : "Reopen study");
     head.replaceChildren(
       h("div", {}, h("h1", {}, study.name, " ", pill(study.status), study.pilot ? pill("pilot") : null),
         h("p", { class: "muted" }, h("code", {}, study.id), " · ",
@@ -287,15 +296,41 @@ async function studyView(studyId) {
         h("div", { class: "row small study-actions" },
           h("a", { class: "button", id: "edit-study", href: `#/study/${encodeURIComponent(study.id)}/edit` }, "Edit"),
           h("button", { id: "clone-study", onclick: cloneStudy }, "Clone"),
-          h("button", { id: "reset-pilot", onclick: resetPilot }, "Reset pilot…")),
+          h("button", { id: "reset-pilot", onclick: resetPilot }, "Reset pilot…"),
+          study.archived_at
+            ? h("button", { id: "unarchive-study", onclick: () => archive(false) }, "Unarchive")
+            : h("button", { id: "archive-study", onclick: () => archive(true) }, "Archive…"),
+          h("button", { id: "delete-study", class: "erase", onclick: deleteStudy }, "Delete…")),
         codesNote()));
   };
   const codesNote = () => (study.completion_code
-    ? h("p", { class: "small muted" }, "Completion code ", h("code", {}, study.completion_code),
-      study.screened_out_code ? [" · screened-out code ", h("code", {}, study.screened_out_code)] : null,
+    ? h("p", { class: "small muted", id: "codes-note" }, OUTCOME_CODES.filter(([name]) => study[name])
+      .flatMap(([name, label], i) => [i ? " · " : "", `${label}: `, h("code", {}, study[name])]),
+      study.screened_out_code ? [" · other screened-out outcomes: ", h("code", {}, study.screened_out_code)] : null,
       study.timeout_minutes ? ` · time-out after ${study.timeout_minutes} min` : null)
     : h("p", { class: "small warn" }, "No completion code set: each participant gets their own code, which Prolific cannot check. ",
       h("a", { href: `#/study/${encodeURIComponent(study.id)}/edit` }, "Set the codes")));
+  const archive = async (archived) => {
+    if (archived && !confirm("Archive this study? It is hidden from the list of studies (and closed if open); "
+      + "nothing of it is deleted, and you can unarchive it.")) return;
+    try {
+      study = await (archived ? api.archiveStudy(study.id) : api.unarchiveStudy(study.id));
+      toast(archived ? "Study archived" : "Study back in the list");
+      renderHead();
+    } catch (error) {
+      toast(error.detail ?? String(error), "error");
+    }
+  };
+  const deleteStudy = async () => {
+    if (!confirm(`Delete the study "${study.name}" for good? This is possible only while it has no participants.`)) return;
+    try {
+      await api.deleteStudy(study.id);
+      toast("Study deleted");
+      location.hash = "#/";
+    } catch (error) {
+      toast(error.detail ?? String(error), "error");
+    }
+  };
   const cloneStudy = async () => {
     try {
       const copy = await api.cloneStudy(study.id);
@@ -315,7 +350,8 @@ async function studyView(studyId) {
       toast(error.detail ?? String(error), "error");
     }
   };
-  const setStatus = async (call) => {
+  const setStatus = async (call, question) => {
+    if (!confirm(question)) return;
     try {
       study = await call(study.id);
       toast(`Study is now ${study.status}`);
@@ -337,6 +373,7 @@ async function studyView(studyId) {
         h("div", { class: "row small" }, h("label", { class: "inline", for: "dropout-minutes" }, "Flag as dropout after"),
           dropoutInput, h("span", {}, "min inactive"), updated)),
       liveBox),
+    h("section", { class: "card", id: "statistics" }, h("h2", {}, "Study statistics"), statsBox),
     h("section", { class: "card" },
       h("div", { class: "section-head" }, h("h2", {}, "Learning curves"),
         h("div", { class: "row small" }, h("label", { class: "inline" }, finishedOnly, "completed participants only"),
@@ -352,6 +389,7 @@ async function studyView(studyId) {
   const refreshCurves = async () => {
     try {
       renderCurves(curvesBox, await api.curves(study.id, finishedOnly.checked, includePilot.checked), study);
+      renderStatistics(statsBox, await api.statistics(study.id, includePilot.checked));
     } catch (error) {
       curvesBox.replaceChildren(errorBox(error));
     }
@@ -385,13 +423,38 @@ async function studyView(studyId) {
   });
 }
 
-function progressText(p) {
+function progressText(p, study) {
+  const index = p.step?.task_index ?? p.task_index;
   if (p.stage === "task" && p.step) {
     const step = p.step.kind === "done" ? "finishing" : `${p.step.kind} ${p.step.index + 1}/${p.step.total}`;
-    const position = p.task_order ? p.task_order.indexOf(p.step.task_index) : p.step.task_index;
-    return `task ${position + 1}/${p.n_tasks} · ${step}`;
+    const position = p.task_order ? p.task_order.indexOf(index) : index;
+    const name = study?.tasks[index]?.name ?? `task ${index + 1}`;
+    return `${name} (${position + 1}/${p.n_tasks ?? study?.tasks.length}) · ${step}`;
   }
-  return p.stage;
+  return p.stage.replace("_", " ");
+}
+
+/** The funnel, the completion times and the condition x task-order cells (GET .../statistics). */
+function renderStatistics(box, data) {
+  const top = Math.max(1, ...data.funnel.map((f) => f.n));
+  const funnel = h("table", { class: "data funnel", id: "funnel" },
+    h("caption", { class: "small muted" }, "How far participants got"),
+    h("tbody", {}, data.funnel.map((f) => h("tr", {}, h("th", { scope: "row" }, f.label),
+      h("td", { class: "num" }, f.n),
+      h("td", { class: "bar-cell" }, h("meter", { min: 0, max: top, value: f.n, "aria-label": `${f.label}: ${f.n} of ${top}` }))))));
+  const t = data.completion_seconds;
+  const times = t.n
+    ? h("p", { id: "completion-times" }, `Completion time of ${t.n} participant(s): median ${duration(t.median)}`,
+      t.quartiles ? ` (quartiles ${duration(t.quartiles[0])} – ${duration(t.quartiles[2])})` : "",
+      `, fastest ${duration(t.min)}, slowest ${duration(t.max)}.`)
+    : h("p", { class: "muted", id: "completion-times" }, "Nobody has completed the study yet.");
+  const cells = data.cells.length
+    ? h("table", { class: "data", id: "cells" }, h("caption", { class: "small muted" }, "Participants per condition and task order"),
+      h("thead", {}, h("tr", {}, ["Condition", "Task order", "Participants"].map((c) => h("th", { scope: "col" }, c)))),
+      h("tbody", {}, data.cells.map((c) => h("tr", {}, h("td", {}, c.condition), h("td", {}, c.tasks.join(" → ")),
+        h("td", { class: "num" }, c.n)))))
+    : h("p", { class: "muted" }, "No participants yet.");
+  box.replaceChildren(h("div", { class: "chart-row" }, funnel, h("div", {}, times, cells)));
 }
 
 function duration(seconds) {
@@ -402,6 +465,33 @@ function duration(seconds) {
 
 const END_REASONS = { declined_consent: "declined consent", withdrew: "withdrew", comprehension: "failed the quiz",
   timeout: "timed out" };
+const OUTCOME_NAMES = { completed: "completed", attention: "failed an attention check", ...END_REASONS };
+
+/** The code a participant was shown and why (their outcome), e.g. "C2SCREEN (timed out)". */
+function codeCell(p) {
+  if (!p.outcome) return h("span", { class: "muted" }, "–");
+  const why = h("span", { class: "small muted" }, ` ${OUTCOME_NAMES[p.outcome] ?? p.outcome}`);
+  return [p.completion_code ? h("code", {}, p.completion_code) : h("span", { class: "muted" }, "no code"), why];
+}
+
+const RESTORABLE = ["timeout", "comprehension", "declined_consent"];
+const HELPABLE_WORDS = {
+  instructions: "Their instructions are marked as read.", quiz: "They are let past the comprehension quiz.",
+  task: "Their current task ends (what they taught so far is kept); the next task or the questionnaire follows.",
+  questionnaire: "Their questionnaire ends with the answers given so far, and they are done." };
+const HELPABLE = Object.keys(HELPABLE_WORDS);
+
+/** Restore or help on one participant after a confirmation; the page shows the result (both are logged). */
+async function assist(call, studyId, p, question) {
+  if (!confirm(`${question}\n\nThis is recorded in the participant's event log.`)) return;
+  try {
+    const row = await call(studyId, p.participant_id);
+    toast(`Participant #${p.participant_id} is now at the ${row.stage} stage`);
+    route();
+  } catch (error) {
+    toast(error.detail ?? String(error), "error");
+  }
+}
 
 async function erase(study, p, after) {
   if (!confirm(`Erase participant #${p.participant_id}? Their events, answers, beliefs and robot recordings are deleted `
@@ -434,7 +524,7 @@ function renderLive(box, data, study, refresh) {
       onclick: (e) => { if (e.target.tagName !== "A") location.hash = href; } },
     h("td", {}, h("a", { href }, `#${p.participant_id}`), p.pilot ? pill("pilot") : null),
     h("td", {}, p.condition),
-    h("td", {}, progressText(p)),
+    h("td", {}, progressText(p, study)),
     h("td", {}, pill(p.status.replace("_", " "), p.status), p.dropout ? pill("dropout") : null,
       p.attention_failed ? pill("attention failed", "flag") : null,
       p.end_reason && p.end_reason !== "withdrew" ? h("span", { class: "small muted" }, ` ${END_REASONS[p.end_reason] ?? p.end_reason}`) : null),
@@ -442,7 +532,7 @@ function renderLive(box, data, study, refresh) {
     h("td", { title: when(p.last_activity_at) }, ago(p.last_activity_at)),
     h("td", { class: "num" }, p.n_events),
     h("td", {}, p.prolific_pid ?? h("span", { class: "muted" }, "–")),
-    h("td", {}, p.completion_code ? h("code", {}, p.completion_code) : h("span", { class: "muted" }, "–")),
+    h("td", { class: "code-cell" }, codeCell(p)),
     h("td", {}, h("button", { class: "ghost small erase", title: "erase this participant's data",
       onclick: (e) => { e.stopPropagation(); erase(study, p, refresh); } }, "Erase")));
   });
@@ -509,22 +599,29 @@ async function participantView(studyId, participantId) {
   const p = data.participant;
   const facts = [["Condition", p.condition], ["Stage", p.stage], ["Joined", when(p.created_at)],
     ["Last activity", `${ago(p.last_activity_at)}`], ["Finished", when(p.finished_at)], ["Events", p.n_events],
-    ["External id", p.prolific_pid ?? "–"], ["Completion code", p.completion_code ?? "–"], ["Seed", p.seed],
+    ["External id", p.prolific_pid ?? "–"], ["Completion code", p.outcome ? `${p.completion_code ?? "no code"} (${OUTCOME_NAMES[p.outcome] ?? p.outcome})` : "–"], ["Seed", p.seed],
     ["Elapsed", duration(p.elapsed_seconds)], ["Task order", (p.task_order ?? study.tasks.map((_, i) => i)).map((i) => study.tasks[i].name).join(" → ")],
     ["Left early", p.end_reason ? END_REASONS[p.end_reason] ?? p.end_reason : "–"],
     ["Attention checks", p.attention_failed ? "failed" : "passed or none"]];
   app.replaceChildren(
     h("div", { class: "page-head" }, h("h1", {}, `Participant #${p.participant_id} `, pill(p.status), p.pilot ? pill("pilot") : null),
       h("div", { class: "row" }, h("button", { onclick: () => route() }, "Refresh"),
+        RESTORABLE.includes(p.end_reason) ? h("button", { id: "restore-participant", onclick: () => assist(
+          api.restoreParticipant, studyId, p, `Restore participant #${p.participant_id}? They continue where they were `
+          + "(a failed quiz gets fresh attempts) and are no longer screened out; their code is withdrawn.") },
+        "Restore") : null,
+        HELPABLE.includes(p.stage) ? h("button", { id: "help-participant", onclick: () => assist(
+          api.helpParticipant, studyId, p, `Help participant #${p.participant_id} on? ${HELPABLE_WORDS[p.stage]}`) },
+        "Help on to the next stage") : null,
         h("button", { class: "erase", id: "erase-participant", onclick: () => erase(study, p, () => {
           location.hash = `#/study/${encodeURIComponent(studyId)}`;
         }) }, "Erase this participant's data"))),
-    h("dl", { class: "card facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, String(v))])),
+    h("dl", { class: "card facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, v === null || v === undefined ? "–" : String(v))])),
     ...data.tasks.map((task) => taskSection(task, studyId, participantId)),
     data.tasks.length ? null : h("p", { class: "card muted" }, "This participant has not started a task yet."),
     data.questionnaire.length ? h("section", { class: "card" }, h("h2", {}, "Questionnaire"),
       h("table", { class: "data", id: "answers" }, h("tbody", {}, data.questionnaire.map((a) =>
-        h("tr", {}, h("td", {}, a.text ?? a.item_id), h("td", { class: "answer" }, String(a.answer))))))) : null,
+        h("tr", {}, h("td", {}, a.text ?? a.item_id), h("td", { class: "answer" }, a.answer === null || a.answer === undefined ? "(no answer)" : String(a.answer))))))) : null,
     h("details", { class: "card" }, h("summary", {}, `Event log (${data.events.length} events)`),
       h("table", { class: "data small", id: "events" },
         h("thead", {}, h("tr", {}, ["#", "Time", "Kind", "Task", "Step", "Details"].map((c) => h("th", {}, c)))),
@@ -563,7 +660,7 @@ function taskSection(task, studyId, participantId) {
   const inspector = h("div", { class: "inspector" });
   const replayBox = h("div", { class: "replay-box" });
   const beliefBox = h("div", {});
-  const stepButtons = h("div", { class: "segmented", role: "tablist", "aria-label": "learning step" });
+  const stepButtons = h("div", { class: "segmented", role: "group", "aria-label": "learning step" });
   inspector.append(replayBox, h("div", { class: "inspector-head" }, h("h3", {}, "Belief after step"), stepButtons), beliefBox);
   const rows = [];
   const select = (k) => {

@@ -21,6 +21,11 @@ if [ ${#missing[@]} -gt 0 ]; then
   fi
 fi
 ensure_venv test
+# axe-core (package.json) for the dashboard's accessibility checks in the browser tests.
+if command -v npm >/dev/null && [ ! -f "$ROOT/node_modules/axe-core/axe.min.js" ]; then
+  echo "==> npm ci (axe-core for the browser tests)"
+  (cd "$ROOT" && npm ci --no-audit --no-fund --silent) || echo "warning: npm ci failed; the axe-core checks will be skipped" >&2
+fi
 
 cd "$ROOT"
 set +e

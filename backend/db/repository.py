@@ -68,6 +68,14 @@ def list_studies(session: Session) -> list[StudyRow]:
     return list(session.scalars(select(StudyRow).order_by(StudyRow.created_at.desc(), StudyRow.id)))
 
 
+def delete_study(session: Session, *, study: StudyRow) -> None:
+    """Delete a study with its (erased) participant rows and its erasure log."""
+    session.execute(delete(ErasureRow).where(ErasureRow.study_id == study.id))
+    session.execute(delete(ParticipantRow).where(ParticipantRow.study_id == study.id))
+    session.delete(study)
+    flush(session)
+
+
 def add_study(session: Session, *, values: dict[str, Any]) -> StudyRow:
     """Insert a study."""
     row = StudyRow(**values)
@@ -338,6 +346,14 @@ def append_event(
 
 
 # ------------------------------------------------------------------ exports
+
+
+def count_study_events(session: Session, *, study_id: str) -> dict[int, int]:
+    """Stored events per participant of a study (what events.csv holds for each)."""
+    stmt = (select(EventRow.participant_id, func.count())
+            .join(ParticipantRow, EventRow.participant_id == ParticipantRow.id)
+            .where(ParticipantRow.study_id == study_id).group_by(EventRow.participant_id))
+    return {pid: n for pid, n in session.execute(stmt)}
 
 
 def iter_study_events(session: Session, *, study_id: str, kind: str | None = None,

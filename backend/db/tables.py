@@ -60,11 +60,24 @@ class StudyRow(Base):
     pilot: Mapped[bool] = mapped_column(Boolean, default=False)
     # Study operations (docs/running-a-study.md): study-level codes, counterbalancing, checks, timeouts.
     completion_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
-    screened_out_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    screened_out_code: Mapped[str | None] = mapped_column(String(64), nullable=True)  # before per-outcome codes
+    # One code per outcome (services/outcomes.py), each optional.
+    declined_consent_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    failed_quiz_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    failed_attention_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    timed_out_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
+    withdrew_code: Mapped[str | None] = mapped_column(String(64), nullable=True)
     task_order: Mapped[str] = mapped_column(String(16), default="fixed", server_default="fixed")
     quiz: Mapped[list[dict[str, Any]]] = mapped_column(JSON, default=list, server_default="[]")
     quiz_max_attempts: Mapped[int] = mapped_column(Integer, default=2, server_default="2")
     timeout_minutes: Mapped[int | None] = mapped_column(Integer, nullable=True)
+    # When timeout_minutes last changed: a new limit counts only idleness after it (None: since creation).
+    timeout_changed_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    # Reconciliation with Prolific (services/prolific.py): the last uploaded submissions export, the bonus rule.
+    prolific_submissions: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON, nullable=True)
+    prolific_uploaded_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    bonus_rule: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+    archived_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)  # hidden from the list
     robot_speed: Mapped[float] = mapped_column(Float, default=1.0, server_default=text("1.0"))  # playback rate 1-3
     places: Mapped[int | None] = mapped_column(Integer, nullable=True)  # participants it takes (None: no limit)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

@@ -19,6 +19,7 @@ from .exports import (
     QUESTIONNAIRE_COLUMNS,
     export_rows,
 )
+from .assistance import help_on, restore_participant
 from .codebook import CODEBOOK_COLUMNS, codebook_rows, export_files
 from .lifecycle import erase_participant, erasure_log, expire_timeouts, reset_pilot, withdraw
 from .notify import LocalNotifier
@@ -26,7 +27,10 @@ from .monitoring import belief_summary, list_participants
 from .participants import (answer_questionnaire, answer_quiz, finish_instructions, give_consent, join_study,
                            participant_id_of)
 from .state import STAGES, Expect, delete_recordings, participant_state
+from .statistics import study_statistics
 from .studies import (
+    archive_study,
+    delete_study,
     ASSIGNMENTS,
     DEFAULT_CONSENT,
     DEMO_QUESTIONNAIRE,
@@ -64,6 +68,11 @@ from .viewing import (
 )
 
 __all__ = [
+    "archive_study",
+    "delete_study",
+    "study_statistics",
+    "help_on",
+    "restore_participant",
     "CODEBOOK_COLUMNS",
     "answer_quiz",
     "clone_study",

@@ -9,6 +9,7 @@ from typing import Any
 
 from .context import Context
 from .exports import EXPORT_COLUMNS, EXPORTS, export_rows
+from .outcomes import OUTCOME_WORDS
 from .studies import get_study
 
 CODEBOOK_COLUMNS = ["file", "column", "type", "meaning", "units_or_levels", "likert_labels"]
@@ -19,6 +20,7 @@ TIME = "ISO 8601, UTC"
 STAGES = ("consent, instructions, quiz, task, questionnaire (under way); done; withdrawn; screened_out")
 END_REASONS = ("declined_consent, withdrew (data deleted), comprehension (failed the quiz), timeout; "
                "empty if the participant did not leave early")
+OUTCOME_LEVELS = "; ".join(f"{name} ({words})" for name, words in OUTCOME_WORDS.items()) + "; empty while under way"
 TRACE = "JSON list of states, each a sorted list of the objects on the table"
 STEP_KINDS = "practice, demonstration, query, test"
 
@@ -31,7 +33,8 @@ COMMON: dict[str, tuple[str, str, str]] = {
     "task": ("category", "the task's key in the study definition", "task1, task2, custom, none"),
     "step_kind": ("category", "kind of teaching step", STEP_KINDS),
     "step_index": ("integer", "the step's number within its kind in this task, from 0", ""),
-    "acceptable": ("boolean", "the participant's verdict on the robot's execution (empty: none given)", BOOL),
+    "acceptable": ("boolean", "the label the learner uses: true for a demonstration, the participant's verdict for "
+                   "a query or test (empty: a test left without one)", BOOL),
     "trace": ("json", "what the table showed after each placement", TRACE),
     "created_at": ("datetime", "when the row was recorded", TIME),
 }
@@ -52,12 +55,19 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "external_session_id": ("text", "SESSION_ID from the study link", ""),
         "consent_at": ("datetime", "when consent was given", TIME),
         "consent_version": ("text", "version of the consent text agreed to", ""),
-        "completion_code": ("text", "the code the participant was given at the end", ""),
+        "completion_code": ("text", "the code the participant was shown at the end, for their outcome (empty: "
+                            "the study set no code for it, or they are under way)", ""),
+        "outcome": ("category", "how the participant's study ended, which decides the code they were shown",
+                    OUTCOME_LEVELS),
         "created_at": ("datetime", "when the participant joined", TIME),
         "last_activity_at": ("datetime", "the participant's last request", TIME),
         "finished_at": ("datetime", "when the participant finished or left", TIME),
-        "total_seconds": ("number", "time from joining to finishing (empty unless done)", "seconds"),
-        "n_events": ("integer", "events recorded for the participant", "count"),
+        "total_seconds": ("number", "time from joining to finishing or leaving (empty while under way)", "seconds"),
+        "elapsed_seconds": ("number", "time from joining to finishing or leaving, or to the last activity while "
+                            "under way (every participant but those who withdrew: of them only the withdrawal is kept)",
+                            "seconds"),
+        "n_events": ("integer", "the participant's rows in events.csv (a withdrawn participant's events are deleted "
+                     "but the withdrawal)", "count"),
         "seed": ("integer", "the participant's session seed (task i uses seed + i)", ""),
     },
     "events": {
@@ -66,7 +76,8 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
                  "participant chose an object), placed (the robot reported the table after placing it), "
                  "demonstration, execution_started, execution_finished, replay_watched (the participant watched "
                  "the robot's finished execution again), assessment, task_finished, questionnaire, completed, "
-                 "withdrawn, screened_out"),
+                 "withdrawn, screened_out, restored (the experimenter brought back a participant who timed out or "
+                 "was screened out), helped_on (the experimenter moved a stuck participant past their stage)"),
         "object": ("category", "the object placed (place and placed events)",
                    "dinner_plate, small_plate, bowl, knife, fork"),
         "labels": ("json", "the objects in their places on the table after a placement, as the robot reported them "
@@ -85,6 +96,9 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "answered_at": ("datetime", "when the step was answered (demonstration finished or verdict given)", TIME),
         "duration_seconds": ("number", "answered_at minus shown_at", "seconds"),
         "n_objects": ("integer", "objects placed in the step", "count"),
+        "learning_step": ("integer", "the belief this step's answer led to: beliefs.csv's step for the same "
+                          "participant_id and task_index (empty: practice and tests, which the learner does not "
+                          "learn from)", ""),
     },
     "beliefs": {
         "step": ("integer", "learning step: 0 is the prior, k the belief after the k-th demonstration or assessed "
@@ -106,6 +120,10 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
                               "their verdicts, queries and tests (tests against the final belief), each just before "
                               "it was given; the same on every row of the task (empty without verdicts)",
                               "probability 0-1"),
+        "step_kind": ("category", "the step (steps.csv step_kind) whose answer this belief follows (empty for the "
+                      "prior)", "demonstration, query"),
+        "step_index": ("integer", "with step_kind: steps.csv's step_index of that step (join beliefs to steps on "
+                       "participant_id, task_index, step_kind, step_index)", ""),
     },
     "questionnaire": {
         "item_id": ("text", "the questionnaire item's id (rows below describe each item)", ""),
@@ -143,11 +161,50 @@ def codebook_rows(ctx: Context, study_id: str) -> list[list[Any]]:
     return rows + list(_item_rows(study["questionnaire"]))
 
 
+# codebook type -> Frictionless Table Schema field type (JSON cells stay text: their shape is in the description)
+FRICTIONLESS_TYPES = {"integer": "integer", "number": "number", "boolean": "boolean", "datetime": "datetime",
+                      "text": "string", "category": "string", "json": "string", "mixed": "any"}
+
+
+def _field(column: str, kind: str, meaning: str, units: str) -> dict[str, Any]:
+    out: dict[str, Any] = {"name": column, "type": FRICTIONLESS_TYPES[kind],
+                           "description": f"{meaning} ({units})" if units else meaning}
+    if kind == "boolean":
+        out.update(trueValues=["true"], falseValues=["false"])
+    if kind == "datetime":
+        out["format"] = "any"  # ISO 8601 with microseconds and offset
+    return out
+
+
+def datapackage(ctx: Context, study_id: str) -> dict[str, Any]:
+    """datapackage.json (Frictionless Data Package) of exports.zip, generated from the codebook: one tabular
+    resource per CSV with each column's type and meaning."""
+    study = get_study(ctx, study_id)
+    rows = codebook_rows(ctx, study_id)[1:]
+    resources = []
+    for name in (*EXPORTS, "codebook"):
+        if name == "codebook":
+            fields = [{"name": c, "type": "string"} for c in CODEBOOK_COLUMNS]
+        else:
+            fields = [_field(column, kind, meaning, units) for file, column, kind, meaning, units, _ in rows
+                      if file == f"{name}.csv" and not column.startswith("answer where")]
+        resources.append({"name": name, "path": f"{name}.csv", "profile": "tabular-data-resource", "format": "csv",
+                          "mediatype": "text/csv", "encoding": "utf-8",
+                          "dialect": {"delimiter": ",", "lineTerminator": "\r\n", "header": True},
+                          "schema": {"fields": fields, "missingValues": [""]}})
+    return {"profile": "tabular-data-package", "name": f"tableteach-{study_id}".lower().replace("_", "-"),
+            "title": study["name"], "description": "Exports of a TableTeach study; the meaning of every column is in "
+            "codebook.csv and in each field's description. study.json is the study's definition.",
+            "resources": resources}
+
+
 def export_files(ctx: Context, study_id: str, *, include_pilot: bool = False
                  ) -> Iterator[tuple[str, Iterable[list[Any]] | str]]:
-    """Every file of exports.zip: (name, rows) for the CSVs and the codebook, (name, text) for study.json."""
+    """Every file of exports.zip: (name, rows) for the CSVs and the codebook, (name, text) for study.json and
+    datapackage.json."""
     study = get_study(ctx, study_id)
     for name in EXPORTS:
         yield f"{name}.csv", export_rows(ctx, study_id, name, include_pilot=include_pilot)
     yield "codebook.csv", codebook_rows(ctx, study_id)
     yield "study.json", json.dumps(study, indent=2, ensure_ascii=False)
+    yield "datapackage.json", json.dumps(datapackage(ctx, study_id), indent=2, ensure_ascii=False)

@@ -10,10 +10,11 @@ from typing import Any
 from ..core import session as core
 from ..core.consistency import consistency_score, session_verdict_probabilities
 from ..db import repository as repo
-from ..db.tables import StudyRow
+from ..db.tables import ParticipantRow, StudyRow
 from ..errors import NotFound
 from .context import Context, aware, iso
 from .monitoring import belief_view
+from .outcomes import outcome_of
 from .planning import session_of
 from .state import task_sequence
 from .studies import study_row
@@ -24,14 +25,16 @@ EXPORTS = ("participants", "events", "steps", "beliefs", "questionnaire")
 PARTICIPANT_COLUMNS = [
     "participant_id", "study_id", "condition", "task_order", "pilot", "stage", "end_reason", "timed_out",
     "quiz_failures", "attention_failed", "task_index", "prolific_pid", "external_study_id",
-    "external_session_id", "consent_at", "consent_version", "completion_code", "created_at", "last_activity_at",
-    "finished_at", "total_seconds", "n_events", "seed",
+    "external_session_id", "consent_at", "consent_version", "completion_code", "outcome", "created_at",
+    "last_activity_at", "finished_at", "total_seconds", "n_events", "seed",
+    "elapsed_seconds",
 ]
 
 
 STEP_COLUMNS = [
     "participant_id", "condition", "task_position", "task_index", "task", "step_kind", "step_index", "shown_at",
     "answered_at", "duration_seconds", "n_objects", "acceptable",
+    "learning_step",  # the belief step (beliefs.csv "step") this step's answer led to
 ]
 
 
@@ -44,11 +47,19 @@ EVENT_COLUMNS = [
 BELIEF_COLUMNS = [
     "participant_id", "condition", "task_index", "task", "step", "record_kind", "acceptable", "trace", "entropy",
     "map_formula", "map_description", "similarity", "map_similarity",
-] + [f"top{i}_{part}" for i in range(1, 6) for part in ("formula", "p")] + ["p_verdict", "consistency_score"]
+] + [f"top{i}_{part}" for i in range(1, 6) for part in ("formula", "p")] + [
+    "p_verdict", "consistency_score",  # teacher consistency (core.consistency)
+    "step_kind", "step_index",  # the step (steps.csv) whose answer this belief follows; empty for the prior
+]
 
 
 QUESTIONNAIRE_COLUMNS = ["participant_id", "condition", "item_id", "item_kind", "item_text", "answer",
                          "attention_check", "attention_expected", "attention_passed", "answered_at"]
+
+
+# What participants.csv keeps of a withdrawn participant (their events, answers and beliefs are deleted).
+WITHDRAWN_KEEPS = frozenset({"participant_id", "study_id", "pilot", "stage", "end_reason", "timed_out",
+                             "completion_code", "outcome", "finished_at", "n_events"})
 
 
 EXPORT_COLUMNS = {"participants": PARTICIPANT_COLUMNS, "events": EVENT_COLUMNS, "steps": STEP_COLUMNS,
@@ -57,6 +68,10 @@ EXPORT_COLUMNS = {"participants": PARTICIPANT_COLUMNS, "events": EVENT_COLUMNS, 
 
 # The event that answers each kind of step: its time minus the time the step was shown is the step's duration.
 ANSWERS = {"demonstration": ("practice", "demonstration"), "assessment": ("query", "test")}
+
+
+# The steps whose answers the learner learns from (core.session: SessionState.learning_records).
+LEARNING_KINDS = ("demonstration", "query")
 
 
 def _json(value: Any) -> str | None:
@@ -83,13 +98,9 @@ def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) ->
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         if name == "participants":
+            stored = repo.count_study_events(s, study_id=study_id)
             for p in repo.list_participants(s, study_id=study_id, include_pilot=include_pilot):
-                yield [p.id, p.study_id, p.condition, _json(p.task_order or list(range(len(study.tasks)))), p.pilot,
-                       p.stage, p.end_reason, p.end_reason == "timeout", p.quiz_failures, p.attention_failed,
-                       p.task_index, p.prolific_pid, p.external_study_id, p.external_session_id, iso(p.consent_at),
-                       p.consent_version, p.completion_code, iso(p.created_at), iso(p.last_activity_at),
-                       iso(p.finished_at), _seconds(p.created_at, p.finished_at) if p.stage == "done" else None,
-                       p.n_events, p.seed]
+                yield _participant_row(study, p, stored.get(p.id, 0))
         elif name == "steps":
             yield from _step_rows(s, study, include_pilot)
         elif name == "events":
@@ -114,11 +125,27 @@ def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) ->
                            answer == item.get("expected") if check else None, iso(e.created_at)]
 
 
+def _participant_row(study: StudyRow, p: ParticipantRow, n_events: int) -> list[Any]:
+    """One participants.csv row; a withdrawn participant's keeps only the fact of the withdrawal (as the consent
+    text promises): number, study, pilot flag, stage, reason, the code shown and when."""
+    row = [p.id, p.study_id, p.condition, _json(p.task_order or list(range(len(study.tasks)))), p.pilot,
+           p.stage, p.end_reason, p.end_reason == "timeout", p.quiz_failures, p.attention_failed,
+           p.task_index, p.prolific_pid, p.external_study_id, p.external_session_id, iso(p.consent_at),
+           p.consent_version, p.completion_code, outcome_of(p), iso(p.created_at), iso(p.last_activity_at),
+           iso(p.finished_at), _seconds(p.created_at, p.finished_at), n_events, p.seed,
+           _seconds(p.created_at, p.finished_at or p.last_activity_at)]
+    if p.end_reason == "withdrew":
+        kept = WITHDRAWN_KEEPS
+        row = [value if column in kept else None for column, value in zip(PARTICIPANT_COLUMNS, row, strict=True)]
+    return row
+
+
 def _step_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[Any]]:
     """One row per answered step: when it was shown (its task started or the previous step was answered), when
     it was answered, and the seconds between."""
     participants = {p.id: p for p in repo.list_participants(s, study_id=study.id)}
     shown: dict[tuple[int, int], Any] = {}
+    learned: dict[tuple[int, int], int] = {}
     for e in repo.iter_study_events(s, study_id=study.id, include_pilot=include_pilot):
         if e.task_index is None:
             continue
@@ -131,10 +158,15 @@ def _step_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[An
                 continue
             pl = e.payload or {}
             objects = pl.get("placed") if e.kind == "demonstration" else pl.get("events")
+            learning_step = None
+            if e.step_kind in LEARNING_KINDS:  # the belief after this answer is beliefs.csv's next step
+                learned[key] = learning_step = learned.get(key, 0) + 1
+            # As the learner takes it: a demonstration is acceptable; a query or test has the participant's verdict.
+            acceptable = pl.get("acceptable") if e.kind == "assessment" else True
             yield [p.id, p.condition, task_sequence(study, p).index(e.task_index), e.task_index,
                    study.tasks[e.task_index]["key"], e.step_kind, e.step_index, iso(shown.get(key)),
                    iso(e.created_at), _seconds(shown.get(key), e.created_at), len(objects or []),
-                   pl.get("acceptable") if e.kind == "assessment" else None]
+                   acceptable, learning_step]
             shown[key] = e.created_at
 
 
@@ -147,7 +179,12 @@ def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[
         records: list[core.Record | None] = [None, *state.learning_records]
         learning, tests = session_verdict_probabilities(state)  # teacher consistency (core.consistency)
         p_verdicts, score = [None, *learning], consistency_score([*learning, *tests])
+        seen: dict[str, int] = {}
         for step, record in enumerate(records):
+            kind_index = None
+            if record is not None:
+                kind_index = seen.get(record.kind, 0)
+                seen[record.kind] = kind_index + 1
             view = belief_view(state.config.task, state.config.prior, data[:step], task.get("ground_truth"), 5)
             cells: list[Any] = []
             for i in range(5):
@@ -157,4 +194,5 @@ def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[
                    None if record is None else record.kind, None if record is None else record.acceptable,
                    None if record is None else _json([sorted(x) for x in record.trace]),
                    view["entropy"], view["map_formula"], view["map_description"], view["similarity"],
-                   view["map_similarity"], *cells, p_verdicts[step], score]
+                   view["map_similarity"], *cells, p_verdicts[step], score,
+                   None if record is None else record.kind, kind_index]

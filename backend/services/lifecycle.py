@@ -17,7 +17,8 @@ from ..db import repository as repo
 from ..db.tables import ParticipantRow, utcnow
 from ..errors import Conflict, NotFound
 from .context import Context, commit, iso
-from .state import Action, act, end_participation, mark_timed_out, robot_key
+from .outcomes import code_to_show
+from .state import Action, act, end_participation, mark_timed_out, robot_key, timed_out
 from .studies import study_row
 
 log = logging.getLogger(__name__)
@@ -56,7 +57,8 @@ def withdraw(ctx: Context, token: str, *, key: str | None = None) -> dict[str, A
         _forget_robot(ctx, a.participant, len(a.study.tasks))
         repo.delete_participant_data(a.s, participant_id=a.participant.id)
         p = a.participant
-        p.completion_code, p.attention_failed, p.quiz_failures = None, False, 0
+        p.completion_code, p.attention_failed, p.quiz_failures = code_to_show(a.study, "withdrew"), False, 0
+        p.prolific_pid = p.external_study_id = p.external_session_id = None  # only the fact of withdrawal stays
         end_participation(a.s, p, stage="withdrawn", reason="withdrew", key=a.key, digest=a.digest)
         a.n_logged += 1
 
@@ -123,12 +125,10 @@ def expire_timeouts(ctx: Context, study_id: str) -> int:
         if not study.timeout_minutes:
             return 0
         since = utcnow() - timedelta(minutes=study.timeout_minutes)
-        if not repo.stale_participants(s, study_id=study_id, idle_since=since):
-            return 0
+        if not any(timed_out(study, p) for p in repo.stale_participants(s, study_id=study_id, idle_since=since)):
+            return 0  # (a changed limit counts idleness from the change: state.timed_out)
     with ctx.db.write() as s:
-        stale = repo.stale_participants(s, study_id=study_id, idle_since=since)
-        for p in stale:
-            mark_timed_out(s, p)
+        stale = [p for p in repo.stale_participants(s, study_id=study_id, idle_since=since) if mark_timed_out(s, p)]
         try:
             repo.commit(s)
         except repo.WriteConflict:

@@ -13,6 +13,7 @@ from ..db import repository as repo
 from ..db.tables import ParticipantRow, utcnow
 from ..errors import NotFound
 from .context import Context, aware, iso
+from .outcomes import outcome_of
 from .planning import session_of
 from .studies import study_row
 
@@ -40,7 +41,8 @@ def participant_row(participant: ParticipantRow, settings: Settings, now: dateti
         "status": live_status(p, settings, now), "pilot": p.pilot, "prolific_pid": p.prolific_pid,
         "created_at": iso(p.created_at), "last_activity_at": iso(p.last_activity_at),
         "finished_at": iso(p.finished_at), "n_events": p.n_events, "completion_code": p.completion_code,
-        "end_reason": p.end_reason, "attention_failed": p.attention_failed, "task_order": p.task_order,
+        "outcome": outcome_of(p), "end_reason": p.end_reason, "attention_failed": p.attention_failed,
+        "task_order": p.task_order,
         "elapsed_seconds": _elapsed(p, now),
     }
 

@@ -15,6 +15,8 @@ from ..db import repository as repo
 from ..db.tables import StudyRow, utcnow
 from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, StudyFull
 from .context import Context, app_version, commit
+from .outcomes import code_to_show
+from .plain_words import shown
 from .state import Action, act, end_participation, require_stage, state_view, task_sequence
 from .studies import ITEM_KINDS
 from .teaching import begin_task, complete
@@ -155,6 +157,7 @@ def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str,
             a.participant.stage = "withdrawn"
             a.participant.end_reason = "declined_consent"
             a.participant.finished_at = now
+            a.participant.completion_code = code_to_show(a.study, "declined_consent")
 
     return act(ctx, token, "consent", {"agree": agree, "version": consent_version}, key, run)
 
@@ -185,7 +188,7 @@ def answer_quiz(ctx: Context, token: str, *, answers: dict[str, Any], key: str |
             value = answers.get(item_id)
             if not isinstance(value, int) or isinstance(value, bool) or not 0 <= value < len(item["options"]):
                 raise InvalidInput(f"answer to quiz item {item_id!r} must be the number of an option, from 0 to "
-                                   f"{len(item['options']) - 1}, got {value!r}")
+                                   f"{len(item['options']) - 1}, got {shown(value)}")
         wrong = [i for i, item in items.items() if answers[i] != item["correct"]]
         attempt = a.participant.quiz_failures + 1
         a.log("quiz", {"answers": dict(answers), "wrong": wrong, "passed": not wrong, "attempt": attempt})
@@ -194,6 +197,7 @@ def answer_quiz(ctx: Context, token: str, *, answers: dict[str, Any], key: str |
             return
         a.participant.quiz_failures = attempt
         if attempt >= a.study.quiz_max_attempts:
+            a.participant.completion_code = code_to_show(a.study, "comprehension")
             end_participation(a.s, a.participant, stage="screened_out", reason="comprehension")
 
     return act(ctx, token, "quiz", {"answers": answers}, key, run)
@@ -207,7 +211,7 @@ def _check_answer(item: dict[str, Any], value: Any) -> Any:
         return value
     low, high = bounds
     if not isinstance(value, int) or isinstance(value, bool) or not low <= value <= high:
-        raise InvalidInput(f"answer to {item['id']!r} must be a whole number from {low} to {high}, got {value!r}")
+        raise InvalidInput(f"answer to {item['id']!r} must be a whole number from {low} to {high}, got {shown(value)}")
     return value
 
 

@@ -17,7 +17,7 @@ from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..db import jobs as job_rows
 from ..errors import Conflict, NotAuthenticated
 from ..recording_store import RecordingId
-from . import executions
+from . import executions, outcomes
 from .context import Context, app_version, aware, iso
 from .runtime import PLAN_AHEAD
 from .guidance import lay_summary, progress, required_objects
@@ -36,11 +36,15 @@ def task_sequence(study: StudyRow, participant: ParticipantRow) -> list[int]:
 
 
 def timed_out(study: StudyRow, participant: ParticipantRow) -> bool:
-    """Whether a participant still under way has been idle past the study's timeout."""
+    """Whether a participant still under way has been idle past the study's timeout; after a change of the limit
+    only idleness since the change counts (lowering it never screens out at once those already idle)."""
     if not study.timeout_minutes or participant.stage not in UNDER_WAY:
         return False
-    last = aware(participant.last_activity_at) or utcnow()
-    return (utcnow() - last).total_seconds() > study.timeout_minutes * 60
+    idle_since = aware(participant.last_activity_at) or utcnow()
+    changed = aware(study.timeout_changed_at)
+    if changed is not None and changed > idle_since:
+        idle_since = changed
+    return (utcnow() - idle_since).total_seconds() > study.timeout_minutes * 60
 
 
 def end_participation(s: Any, participant: ParticipantRow, *, stage: str, reason: str,
@@ -53,11 +57,18 @@ def end_participation(s: Any, participant: ParticipantRow, *, stage: str, reason
                       client_event_id=key, request_digest=digest)
 
 
-def mark_timed_out(s: Any, participant: ParticipantRow) -> None:
-    """Screen out a participant idle past the study's timeout; their data stay, flagged."""
+def mark_timed_out(s: Any, participant: ParticipantRow) -> bool:
+    """Screen out a participant idle past the study's timeout (false, and nothing changes, if they are not): their
+    data stay, flagged, they are given the study's time-out code, and they finished at their last activity."""
+    study = repo.get_study(s, study_id=participant.study_id)
+    if study is None or not timed_out(study, participant):
+        return False
     idle_since = aware(participant.last_activity_at)
+    participant.completion_code = outcomes.code_to_show(study, "timeout")
     end_participation(s, participant, stage="screened_out", reason="timeout")
-    participant.last_activity_at = idle_since or participant.last_activity_at  # the timeout is not activity
+    if idle_since is not None:  # the time-out is not activity: they left when they last acted
+        participant.last_activity_at = participant.finished_at = idle_since
+    return True
 
 
 def robot_key(participant: ParticipantRow, task_index: int) -> str:
@@ -184,13 +195,12 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         out["completion"] = {"code": participant.completion_code, "reason": None,
                              "redirect_url": _completion_url(study, participant.completion_code),
                              "learned": _learned(s, participant)}
-    elif participant.end_reason is not None and participant.end_reason != "withdrew":
-        # Declined consent, failed the comprehension quiz or timed out: the study's screened-out code.
-        code = study.screened_out_code
-        out["completion"] = {"code": code, "reason": participant.end_reason,
-                             "redirect_url": _completion_url(study, code), "learned": []}
-    elif participant.stage == "withdrawn":
-        out["completion"] = {"code": None, "reason": participant.end_reason, "redirect_url": None, "learned": []}
+    elif participant.end_reason is not None:
+        # Declined consent, failed the quiz, timed out or withdrew: the code given for that outcome (outcomes.py).
+        code = participant.completion_code
+        redirect = _completion_url(study, code) if code or participant.end_reason != "withdrew" else None
+        out["completion"] = {"code": code, "reason": participant.end_reason, "redirect_url": redirect,
+                             "learned": []}
     # Progress follows the participant's own task order (counterbalancing): position, not the task's index.
     sequence = task_sequence(study, participant)
     configs = [session_config(study, participant, i) for i in sequence]

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import secrets
 from typing import Any
 
 from ..core import session as core
@@ -13,6 +12,7 @@ from ..errors import Conflict, InvalidInput
 from ..recording_store import RecordingId
 from . import executions, placements
 from .context import Context
+from .outcomes import code_to_show, outcome_of
 from .planning import ROBOT_TURNS, session_of
 from .runtime import FINISH_EXECUTION, WORK_OUT
 from .state import (
@@ -186,17 +186,9 @@ def _advance(a: Action, ts: TaskSessionRow, new_state: core.SessionState) -> Non
         complete(a)
 
 
-def completion_code(a: Action) -> str:
-    """The study's completion code (its screened-out code after a failed attention check, if set); with neither
-    set, a fresh code for this participant."""
-    if a.participant.attention_failed and a.study.screened_out_code:
-        return a.study.screened_out_code
-    return a.study.completion_code or secrets.token_hex(4).upper()
-
-
 def complete(a: Action) -> None:
     a.participant.stage = "done"
     a.participant.finished_at = utcnow()
-    a.participant.completion_code = completion_code(a)
+    a.participant.completion_code = code_to_show(a.study, outcome_of(a.participant) or "completed")
     a.log("completed", {"completion_code": a.participant.completion_code,
                         "attention_failed": a.participant.attention_failed})

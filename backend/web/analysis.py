@@ -43,7 +43,9 @@ class LiveOut(BaseModel):
     participants: list[LiveRowOut]
 
 
-class FormulaOut(BaseModel):
+class RankedFormulaOut(BaseModel):
+    """One of the learner's most probable formulas."""
+
     formula: str
     description: str
     p: float
@@ -65,7 +67,7 @@ class BeliefStepOut(BaseModel):
     map_similarity: float | None
     map_formula: str
     map_description: str
-    top: list[FormulaOut]
+    top: list[RankedFormulaOut]
 
 
 class ExecutionOut(BaseModel):

@@ -12,12 +12,13 @@ from fastapi import APIRouter, FastAPI
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
-from . import accounts, analysis, dashboard, events, motion, viewer
+from . import accounts, analysis, dashboard, events, motion, openapi, prolific, viewer
 from .audit import AuditWrites
 from .auth import experimenter_checker
 from .deps import require_experimenter
 from .events import Feeds
 from .limits import AddressLimiter, BodyLimit
+from .methods import AllowedMethods
 from .robots import make_recording_store, make_robot
 from .streams import StreamSlots
 from .schemas import error_responses
@@ -52,7 +53,7 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     # /docs and /redoc load their scripts from a CDN: offered in dev mode only (/openapi.json is always served).
     docs = {} if settings.dev_mode else {"docs_url": None, "redoc_url": None}
     app = FastAPI(title="TableTeach study server", version=app_version(), description=DESCRIPTION, lifespan=lifespan,
-                  **docs)
+                  generate_unique_id_function=openapi.operation_id, **docs)
     app.state.context = ctx
     app.state.settings = settings
     app.state.experimenter = checker
@@ -62,9 +63,12 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.event_feeds = Feeds(StreamSlots(settings.streams_per_participant, settings.max_event_streams))
     app.state.viewer_slots = StreamSlots(settings.streams_per_participant, settings.max_viewer_sockets)
     errors.install(app)
+    openapi.install(app)
     app.add_middleware(BodyLimit)
     app.add_middleware(AuditWrites)
-    for module in (participants, studies, exports, analysis, accounts, dashboard, motion, viewer, events, pages):
+    app.add_middleware(AllowedMethods, routes_of=lambda: app)
+    for module in (participants, studies, exports, analysis, accounts, prolific, dashboard, motion, viewer, events,
+                   pages):
         app.include_router(module.router, responses=_common_errors(module.router))
     app.include_router(studies.formulas, responses=_common_errors(studies.formulas))
     app.include_router(accounts.public, responses=_common_errors(accounts.public))

@@ -113,21 +113,48 @@ def _safe_url(url: str) -> str:
     return url
 
 
+def _quiz_answers(text: str | None) -> dict[str, int]:
+    """--quiz-answers "who=1,order=0" as {item id: option number}."""
+    out: dict[str, int] = {}
+    for part in (text or "").split(","):
+        if not part.strip():
+            continue
+        item, sep, number = part.partition("=")
+        if not sep or not item.strip() or not number.strip().isdigit():
+            raise ValueError(f"--quiz-answers: {part.strip()!r} is not ITEM=NUMBER (the option's number from 0), "
+                             "e.g. who=1,order=0")
+        out[item.strip()] = int(number)
+    return out
+
+
 def cmd_teach(args: argparse.Namespace) -> dict:
     """A scripted teacher completes one participant session over HTTP."""
     import httpx
 
-    from ..client import ApiError, run_teacher
+    from ..client import ApiError, ExperimenterClient, StudyKnowledge, run_teacher
 
     if not 0.0 <= args.noise <= 1.0:
         raise ValueError(f"--noise must be a probability in [0, 1], got {args.noise}")
+    if not 0.0 <= args.attention_fail_rate <= 1.0:
+        raise ValueError(f"--attention-fail-rate must be a probability in [0, 1], got {args.attention_fail_rate}")
+    if args.session_timeout is not None and args.session_timeout <= 0:
+        raise ValueError(f"--session-timeout must be a positive number of seconds, got {args.session_timeout}")
     try:
+        knows = StudyKnowledge(attention_fail_rate=args.attention_fail_rate)
+        if args.token:
+            with ExperimenterClient(args.server, token=args.token) as experimenter:
+                knows = StudyKnowledge.of_study(experimenter.study_spec(args.study),
+                                                attention_fail_rate=args.attention_fail_rate)
+        knows.quiz_answers.update(_quiz_answers(args.quiz_answers))
         run = run_teacher(args.server, args.study, args.ground_truth, noise=args.noise, seed=args.seed,
-                          prolific_pid=args.prolific_pid, session_id=args.session_id)
+                          prolific_pid=args.prolific_pid, session_id=args.session_id, knows=knows,
+                          timeout=args.session_timeout)
     except ApiError as exc:
         raise ValueError(f"the server refused a request: {exc}") from exc
     except httpx.HTTPError as exc:
         raise ValueError(f"cannot reach {args.server}: {exc}") from exc
+    except TimeoutError as exc:
+        raise ValueError(f"{exc}; give a longer --session-timeout") from exc
     return {"study_id": args.study, **run.summary()}
 
 
@@ -218,6 +245,16 @@ def register(sub: argparse._SubParsersAction) -> None:
     teach.add_argument("--prolific-pid", help="external participant id")
     teach.add_argument("--session-id", help="external session id (a rerun with the same --prolific-pid and "
                                             "--session-id resumes the same session)")
+    teach.add_argument("--token", help="experimenter token: the teacher reads the study definition and answers the "
+                       "quiz and the attention checks correctly (and refuses before joining a study it cannot "
+                       "finish)")
+    teach.add_argument("--quiz-answers", help="the quiz's answers without the token, e.g. who=1,order=0 (option "
+                       "numbers from 0)")
+    teach.add_argument("--attention-fail-rate", type=float, default=0.0,
+                       help="probability of answering an attention check wrongly (default 0; needs --token)")
+    teach.add_argument("--session-timeout", type=float, default=None,
+                       help="seconds for the whole session (default: three times the server's estimate, at least "
+                       "600, which fits the demo study with the MuJoCo robot at real speed)")
     teach.set_defaults(run=cmd_teach)
 
     export = sub.add_parser("export", help="download a study's CSV exports")
@@ -225,7 +262,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     export.add_argument("--study", required=True, help="study id")
     export.add_argument("--token", required=True, help="experimenter token")
     export.add_argument("--out", required=True,
-                        help="folder to write participants/events/steps/beliefs/questionnaire.csv and codebook.csv")
+                        help="folder to write the files of exports.zip: participants/events/steps/beliefs/"
+                        "questionnaire.csv, codebook.csv, datapackage.json and study.json")
     export.add_argument("--include-pilot", action="store_true", help="also pilot participants (left out by default)")
     export.set_defaults(run=cmd_export)
 

@@ -25,7 +25,7 @@ HEADERS = {
                                "script-src 'self'; connect-src 'self'; frame-ancestors 'none'; base-uri 'none'",
 }
 
-router = APIRouter(tags=["pages"])
+router = APIRouter(tags=["pages"], include_in_schema=False)  # HTML pages: not part of the API
 
 
 @router.get("/dashboard", response_class=FileResponse, responses={200: {"content": {"text/html": {}}}})

@@ -11,8 +11,9 @@ from starlette.exceptions import HTTPException as StarletteHTTPException
 
 from ..core.session import ProtocolError
 from ..errors import (Conflict, Forbidden, InvalidInput, NotAuthenticated, NotFound, ResumeRefused, StudyFull,
-                      TableTeachError,
-                      TryLater)
+                      TableTeachError, TryLater)
+from ..services.plain_words import field_errors
+from ..services.study_definition import PATTERN_HINTS
 from .pages import error_page, is_page
 
 log = logging.getLogger(__name__)
@@ -29,16 +30,11 @@ def _answer(status: int, detail: str, state: object = None, headers: dict[str, s
 
 
 def _field_errors(exc: RequestValidationError) -> list[dict[str, str]]:
-    return [{"field": ".".join(str(x) for x in err.get("loc", ()) if x != "body") or "request",
-             "message": str(err.get("msg", "invalid"))} for err in exc.errors()]
+    return field_errors(exc.errors(), PATTERN_HINTS)
 
 
-def _validation_message(exc: RequestValidationError) -> str:
-    parts = []
-    for err in exc.errors()[:5]:
-        where = ".".join(str(x) for x in err.get("loc", ()) if x != "body") or "request"
-        parts.append(f"{where}: {err.get('msg', 'invalid')}")
-    return "; ".join(parts) or "invalid request"
+def _validation_message(errors: list[dict[str, str]]) -> str:
+    return "; ".join(f"{e['field']}: {e['message']}" for e in errors[:5]) or "invalid request"
 
 
 def _for(request: Request, answer: JSONResponse, *, resume_refused: bool = False,
@@ -68,7 +64,8 @@ def install(app: FastAPI) -> None:
 
     @app.exception_handler(RequestValidationError)
     async def _invalid(request: Request, exc: RequestValidationError) -> Response:
-        return _for(request, _answer(422, _validation_message(exc), errors=_field_errors(exc)))
+        errors = _field_errors(exc)
+        return _for(request, _answer(422, _validation_message(errors), errors=errors))
 
     @app.exception_handler(StarletteHTTPException)
     async def _http(request: Request, exc: StarletteHTTPException) -> Response:

@@ -56,7 +56,7 @@ def _attachment(filename: str) -> dict[str, str]:
 
 
 @router.get("/{study_id}/exports/exports.zip", response_class=Response,
-            responses={200: {"content": {"application/zip": {}},
+            responses={200: {"content": {"application/zip": {"schema": {"type": "string", "format": "binary"}}},
                              "description": "every CSV, codebook.csv and study.json"}})
 def export_zip(study_id: str, ctx: ContextDep, include_pilot: IncludePilot = False) -> Response:
     """Download exports.zip: every CSV below, codebook.csv and the study definition (study.json)."""
@@ -70,7 +70,8 @@ def export_zip(study_id: str, ctx: ContextDep, include_pilot: IncludePilot = Fal
 
 
 @router.get("/{study_id}/exports/{name}.csv", response_class=StreamingResponse,
-            responses={200: {"content": {"text/csv": {}}, "description": "the CSV file"}})
+            responses={200: {"content": {"text/csv": {"schema": {"type": "string", "format": "binary"}}},
+                             "description": "the CSV file"}})
 def export(study_id: str, name: Literal["participants", "events", "steps", "beliefs", "questionnaire", "codebook"],
            ctx: ContextDep, include_pilot: IncludePilot = False) -> StreamingResponse:
     """Download participants, events, steps, beliefs, questionnaire or codebook .csv (columns: codebook.csv)."""

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Literal
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
+from pydantic import BaseModel, Field
 
 from .. import services
 from ..errors import NotAuthenticated
@@ -14,7 +15,7 @@ from .deps import ContextDep, JoinAllowed
 from .frontend_files import FRONTEND, allowed_file
 from .schemas import error_responses
 
-router = APIRouter(tags=["pages"], responses=error_responses(422))
+router = APIRouter(tags=["operations"], responses=error_responses(422))  # its pages stay out of the schema
 ExternalId = Annotated[str | None, Query(max_length=128, pattern=r"^[A-Za-z0-9_.:\-]*$")]
 
 ASSETS = {
@@ -87,6 +88,7 @@ def error_page(status: int, headers: dict[str, str] | None = None, *, resume_ref
 
 
 @router.get("/study/{study_id}/join", response_class=RedirectResponse, status_code=303, dependencies=[JoinAllowed],
+            include_in_schema=False,
             responses={303: {"description": "to the participant's page /p/{token}"},
                        404: {"description": "no such study (an HTML page)", "content": {"text/html": {}}},
                        409: {"description": "the study is not open or full, or this PROLIFIC_PID joined before from "
@@ -107,7 +109,7 @@ def join_link(study_id: str, ctx: ContextDep, request: Request, PROLIFIC_PID: Ex
     return response
 
 
-@router.get("/p/{token}", response_class=FileResponse,
+@router.get("/p/{token}", response_class=FileResponse, include_in_schema=False,
             responses={200: {"content": {"text/html": {}}},
                        404: {"description": "unknown link", "content": {"text/html": {}}}})
 def participant_page(token: str, ctx: ContextDep) -> Response:
@@ -119,14 +121,19 @@ def participant_page(token: str, ctx: ContextDep) -> Response:
     return FileResponse(FRONTEND / "participant.html", media_type="text/html; charset=utf-8", headers=PAGE_HEADERS)
 
 
-@router.get("/participant/assets/{name}", response_class=FileResponse,
+@router.get("/participant/assets/{name}", response_class=FileResponse, include_in_schema=False,
             responses={404: {"description": "no such file"}})
 def participant_asset(name: str) -> FileResponse:
     """A script, style sheet or picture of the participant page (only the files listed in ASSETS)."""
     return allowed_file(name, ASSETS, what="participant asset", headers={"Cache-Control": "no-cache"})
 
 
-@router.get("/healthz", responses=error_responses(503))
+class HealthOut(BaseModel):
+    status: Literal["ok"]
+    version: str = Field(description="the server's version")
+
+
+@router.get("/healthz", response_model=HealthOut, responses=error_responses(503))
 def health(ctx: ContextDep) -> dict[str, str]:
     """Health check: 200 while the database answers; 503 (with Retry-After) when it is busy, missing or replaced."""
     ctx.db.health()

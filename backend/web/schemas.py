@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, field_validator
 
 from ..core.domain import DINNER_OBJECTS
-from ..core.priors import NAMED_PRIORS
-from ..core.puns import CRITERIA
+from ..services.outcomes import OUTCOMES
+# The study definition's model is the services' validator: one set of rules for the API and the services.
+from ..services.study_definition import StudyIn as StudyIn
+from ..services.study_definition import integral
 
 Id = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
 ObjectName = Literal[DINNER_OBJECTS]  # type: ignore[valid-type]
@@ -16,9 +18,14 @@ StepKind = Literal["practice", "demonstration", "query", "test"]
 
 
 class Strict(BaseModel):
-    """Unknown fields are an error: a typo should not pass silently."""
+    """Unknown fields are an error: a typo should not pass silently; 18.0 is the whole number 18."""
 
     model_config = ConfigDict(extra="forbid", strict=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _whole_numbers(cls, value: Any) -> Any:
+        return integral(value)
 
 
 class StepGuard(Strict):
@@ -56,6 +63,98 @@ class JoinIn(Strict):
     session_id: str | None = Field(None, min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
 
 
+class ConsentOut(BaseModel):
+    text: str = Field(description="the consent text to show")
+    version: str = Field(description="send it back with the answer (POST /me/consent)")
+    given_at: str | None = Field(description="when consent was given (ISO 8601), empty before")
+
+
+class StateTaskOut(BaseModel):
+    """The task under way."""
+
+    index: int = Field(description="the task's number in the study definition, from 0")
+    total: int = Field(description="how many tasks the study has")
+    name: str
+    instructions: str
+    key: Literal["task1", "task2", "custom", "none"]
+    position: int = Field(description="the task's place in this participant's order, from 0")
+    required: list[str] = Field(description="objects the task says must end up on the table")
+
+
+class StateStepOut(BaseModel):
+    """Where the participant is within the task."""
+
+    kind: Literal["practice", "demonstration", "query", "test", "done"]
+    index: int = Field(description="the step's number within its kind, from 0")
+    total: int = Field(description="how many steps of this kind the task has")
+
+
+class DemonstrationOut(BaseModel):
+    """A practice trial or demonstration under way: what the participant has placed and the robot reported."""
+
+    placed: list[str] = Field(description="objects placed so far, in order")
+    labels: list[str] = Field(description="objects in their places on the table now, as the robot reported them")
+    trace: list[list[str]] = Field(description="the table after each placement")
+    settled: bool = Field(description="the robot has reported the table after every placement")
+
+
+class ExecutionStateOut(BaseModel):
+    """The robot's execution of the current query or test."""
+
+    kind: Literal["query", "test"]
+    index: int
+    status: Literal["not_started", "running", "finished"]
+    events: list[str] | None = Field(description="the objects the robot places, in order (once started)")
+    trace: list[list[str]] | None = Field(description="the table after each of the robot's placements (finished)")
+    replays: int = Field(0, description="how often the participant has watched it again")
+
+
+class QuestionnaireItemOut(BaseModel):
+    """A questionnaire item as the participant sees it (an attention check looks like any agreement item)."""
+
+    id: str
+    text: str
+    kind: Literal["likert5", "rating10", "text", "attention"]
+    required: bool
+
+
+class LearnedOut(BaseModel):
+    """The debriefing: what the robot believes a task is, once the participant has finished."""
+
+    task_index: int
+    map_formula: str
+    map_description: str
+    summary: str
+
+
+class CompletionOut(BaseModel):
+    """How the participant's study ended and the code they are shown for it."""
+
+    code: str | None = Field(description="the completion code for this outcome (empty: the study set none)")
+    reason: Literal["declined_consent", "withdrew", "comprehension", "timeout"] | None = Field(
+        description="why the participant left early; empty for those who finished")
+    redirect_url: str | None = Field(description="the study's completion URL with the code; empty if it has none")
+    learned: list[LearnedOut]
+
+
+class QuizQuestionOut(BaseModel):
+    id: str
+    text: str
+    options: list[str]
+
+
+class QuizStateOut(BaseModel):
+    items: list[QuizQuestionOut]
+    failed_attempts: int
+    attempts_left: int
+
+
+class ProgressOut(BaseModel):
+    done: int = Field(description="steps of the whole study done")
+    total: int = Field(description="steps of the whole study")
+    minutes_left: int = Field(description="about how many minutes are left (rounded up)")
+
+
 class ParticipantState(BaseModel):
     """What a participant sees; every participant action answers with it."""
 
@@ -65,17 +164,15 @@ class ParticipantState(BaseModel):
     stage: Literal["consent", "instructions", "quiz", "task", "questionnaire", "done", "withdrawn", "screened_out"]
     n_events: int
     objects: list[str]
-    consent: dict[str, Any]
-    task: dict[str, Any] | None
-    step: dict[str, Any] | None
-    demonstration: dict[str, Any] | None
-    execution: dict[str, Any] | None
-    questionnaire: list[dict[str, Any]] | None
-    completion: dict[str, Any] | None = Field(
-        description="at the end: code, redirect_url (the study's completion URL with the code), reason for leaving "
-                    "early (declined_consent, withdrew, comprehension, timeout) and the debriefing")
-    quiz: dict[str, Any] | None = Field(None, description="at the quiz stage: items, failed_attempts, attempts_left")
-    progress: dict[str, Any] | None = Field(None, description="{done, total, minutes_left}: steps of the whole study")
+    consent: ConsentOut
+    task: StateTaskOut | None = Field(description="at the task stage")
+    step: StateStepOut | None = Field(description="at the task stage")
+    demonstration: DemonstrationOut | None = Field(description="during a practice trial or demonstration")
+    execution: ExecutionStateOut | None = Field(description="during a query or test")
+    questionnaire: list[QuestionnaireItemOut] | None = Field(description="at the questionnaire stage")
+    completion: CompletionOut | None = Field(description="at the end, or after leaving early")
+    quiz: QuizStateOut | None = Field(None, description="at the quiz stage")
+    progress: ProgressOut | None = Field(None, description="steps of the whole study")
     replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
 
 
@@ -86,62 +183,30 @@ class JoinOut(BaseModel):
     state: ParticipantState
 
 
-class TaskIn(Strict):
+
+
+class StudyTaskOut(BaseModel):
+    """A stored task: named tasks carry their fixed formula, custom ones their canonical formula."""
+
     key: Literal["task1", "task2", "custom", "none"]
-    ground_truth: str | None = Field(None, max_length=2000)
-    name: str | None = Field(None, max_length=200)
-    instructions: str | None = Field(None, max_length=5000)
+    ground_truth: str | None
+    name: str
+    instructions: str
 
 
-class ItemIn(Strict):
-    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
-    text: str = Field(max_length=2000)
+class StudyItemOut(BaseModel):
+    id: str
+    text: str
     kind: Literal["likert5", "rating10", "text", "attention"]
-    required: bool = True
-    expected: int | None = Field(None, ge=1, le=5,
-                                 description="attention checks (shown as a 1-5 agreement scale): the expected answer")
+    required: bool
+    expected: int | None = Field(None, description="attention checks: the expected answer (1-5)")
 
 
-class QuizItemIn(Strict):
-    id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
-    text: str = Field(min_length=1, max_length=2000)
-    options: list[str] = Field(min_length=2, max_length=10)
-    correct: int = Field(ge=0, le=9, description="index (from 0) of the correct option")
-
-
-
-class StudyIn(Strict):
-    name: str = Field("Untitled study", max_length=200)
-    tasks: list[TaskIn] = Field(min_length=1, max_length=10)
-    conditions: list[Literal["active", "random", "batch"]] = Field(["active"], min_length=1, max_length=3)
-    assignment: Literal["random", "balanced"] = "balanced"
-    n_practice: int = Field(1, ge=0, le=20)
-    n_demonstrations: int = Field(2, ge=0, le=20)
-    n_queries: int = Field(3, ge=0, le=20)
-    n_tests: int = Field(3, ge=0, le=20)
-    prior: Literal[tuple(NAMED_PRIORS)] = "chains-2020-sat"  # type: ignore[valid-type]
-    criterion: Literal[CRITERIA] = "min-regret"  # type: ignore[valid-type]
-    questionnaire: list[ItemIn] = Field(default_factory=list, max_length=100)
-    consent_text: str | None = Field(None, max_length=20000)
-    consent_version: str | None = Field(None, max_length=64)
-    completion_url: str | None = Field(None, max_length=500, pattern=r"^https?://\S+$",
-                                       description="redirect after completion; {code} is replaced")
-    pilot: bool = False
-    completion_code: str | None = Field(None, min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$",
-                                        description="every participant who finishes is redirected with this code")
-    screened_out_code: str | None = Field(None, min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$",
-                                          description="for those who declined consent, failed a check or timed out")
-    task_order: Literal["fixed", "random", "balanced"] = "fixed"
-    quiz: list[QuizItemIn] = Field(default_factory=list, max_length=20)
-    quiz_max_attempts: int = Field(2, ge=1, le=10)
-    timeout_minutes: int | None = Field(None, ge=1, le=1440)
-    robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
-                               "than real time (recordings keep real time)")
-    places: int | None = Field(None, ge=1, le=100_000, description="participants the study takes, counted as Prolific "
-                               "does (finished plus under way); then joining answers 409 (empty: no limit)")
-
-
-STUDY_FIELDS = tuple(StudyIn.model_fields)
+class StudyQuizItemOut(BaseModel):
+    id: str
+    text: str
+    options: list[str]
+    correct: int
 
 
 class StudyOut(BaseModel):
@@ -149,7 +214,7 @@ class StudyOut(BaseModel):
     name: str
     status: Literal["draft", "open", "closed"]
     pilot: bool
-    tasks: list[dict[str, Any]]
+    tasks: list[StudyTaskOut]
     conditions: list[str]
     assignment: str
     n_practice: int
@@ -158,18 +223,24 @@ class StudyOut(BaseModel):
     n_tests: int
     prior: str
     criterion: str
-    questionnaire: list[dict[str, Any]]
+    questionnaire: list[StudyItemOut]
     consent_text: str
     consent_version: str
     completion_url: str | None
     completion_code: str | None
+    declined_consent_code: str | None = None
+    failed_quiz_code: str | None = None
+    failed_attention_code: str | None = None
+    timed_out_code: str | None = None
+    withdrew_code: str | None = None
     screened_out_code: str | None
     task_order: str
-    quiz: list[dict[str, Any]]
+    quiz: list[StudyQuizItemOut]
     quiz_max_attempts: int
     timeout_minutes: int | None
     robot_speed: float = 1.0
     places: int | None = None
+    archived_at: str | None = Field(None, description="when the study was archived (hidden from the list)")
     created_at: str | None
     updated_at: str | None
 
@@ -192,7 +263,9 @@ class ParticipantBaseOut(BaseModel):
     last_activity_at: str | None
     finished_at: str | None
     n_events: int
-    completion_code: str | None
+    completion_code: str | None = Field(description="the code the participant was shown at the end")
+    outcome: Literal[OUTCOMES] | None = Field(  # type: ignore[valid-type]
+        None, description="why they were given that code: how their study ended (empty while under way)")
 
 
 class ParticipantRowOut(ParticipantBaseOut):
@@ -203,7 +276,7 @@ class BeliefOut(BaseModel):
     participant_id: int
     condition: str
     stage: str
-    tasks: list[dict[str, Any]]
+    tasks: list[BeliefTaskOut]
 
 
 class FieldErrorOut(BaseModel):
@@ -225,6 +298,40 @@ class StudyPatch(Strict):
     model_config = ConfigDict(extra="allow")
 
 
+class FunnelStageOut(BaseModel):
+    stage: Literal["joined", "consented", "started", "finished_tasks", "completed"]
+    label: str
+    n: int = Field(description="participants who got at least this far")
+
+
+class CompletionTimesOut(BaseModel):
+    n: int
+    values: list[float] = Field(description="seconds from joining to completing, sorted")
+    median: float | None
+    quartiles: list[float] | None = Field(description="25th, 50th and 75th percentiles (two or more values)")
+    min: float | None
+    max: float | None
+
+
+class CellOut(BaseModel):
+    condition: str
+    task_order: list[int]
+    tasks: list[str] = Field(description="the tasks' names in that order")
+    n: int
+
+
+class StatisticsOut(BaseModel):
+    """How far participants got, how long finishing took, and the counterbalancing cells."""
+
+    study_id: str
+    n_participants: int
+    include_pilot: bool
+    funnel: list[FunnelStageOut]
+    outcomes: dict[str, int] = Field(description="participants per outcome (completed, declined_consent, ...)")
+    completion_seconds: CompletionTimesOut
+    cells: list[CellOut] = Field(description="participants per condition x task order (withdrawn left out)")
+
+
 class PilotResetOut(BaseModel):
     study_id: str
     erased: list[int]
@@ -238,9 +345,32 @@ class ErasureOut(BaseModel):
     erased_at: str | None
 
 
-class FormulaOut(BaseModel):
+class FormulaDescriptionOut(BaseModel):
+    """A formula in canonical form and in plain words."""
+
+    formula: str = Field(description="canonical form, e.g. (!fork U knife) & F(bowl)")
+    description: str = Field(description="in plain English")
+
+
+class BeliefFormulaOut(BaseModel):
     formula: str
     description: str
+    p: float = Field(description="its probability under the learner's belief")
+
+
+class BeliefTaskOut(BaseModel):
+    """What the learner believes one task is."""
+
+    task_index: int
+    task: str
+    phase: str = Field(description="the task's teaching phase (practice, demonstration, query, test, done)")
+    n_observations: int = Field(description="demonstrations and assessed executions learned from")
+    entropy: float = Field(description="entropy of the belief (nats)")
+    similarity: float | None = Field(description="expected similarity to the ground truth (empty when unknown)")
+    map_similarity: float | None
+    map_formula: str
+    map_description: str
+    top: list[BeliefFormulaOut]
 
 
 ERROR_MEANINGS = {

@@ -5,13 +5,11 @@ from __future__ import annotations
 from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Query, Response, status
-from pydantic import ValidationError
-
 from .. import services
-from ..errors import InvalidFields
+from ..services.study_definition import FORMULA_PATTERN
 from .deps import ContextDep, Experimenter, ParticipantId
-from .schemas import (BeliefOut, ErasureOut, FormulaOut, ParticipantRowOut, PilotResetOut, StudyIn, StudyOut,
-                      error_responses)
+from .schemas import (BeliefOut, ErasureOut, FormulaDescriptionOut, ParticipantBaseOut, ParticipantRowOut,
+                      PilotResetOut, StatisticsOut, StudyIn, StudyOut, error_responses)
 
 ERRORS = error_responses(400, 401, 404, 409, 422)
 router = APIRouter(prefix="/api/v1/studies", tags=["experimenter"], dependencies=[Experimenter], responses=ERRORS)
@@ -22,41 +20,17 @@ STUDY_IN = {"requestBody": {"required": True, "content": {"application/json": {
     "schema": {"$ref": "#/components/schemas/StudyIn"}}}}}
 
 
-def _field(loc: tuple[Any, ...]) -> str:
-    return ".".join(str(part) for part in loc) or "body"
-
-
-def validated_study(body: dict[str, Any]) -> dict[str, Any]:
-    """The study definition checked field by field; InvalidFields lists every unacceptable field at once."""
-    model = None
-    schema_errors: list[dict[str, str]] = []
-    try:
-        model = StudyIn.model_validate(body)
-    except ValidationError as exc:
-        schema_errors = [{"field": _field(e["loc"]), "message": e["msg"]} for e in exc.errors()]
-    defaults = {name: f.get_default(call_default_factory=True) for name, f in StudyIn.model_fields.items()
-                if not f.is_required()}
-    try:
-        errors = services.study_problems({**defaults, **body})  # the plainer words, where both say something
-    except Exception:  # values of the wrong type: the schema's messages name them
-        errors = []
-    seen = {e["field"] for e in errors}
-    errors += [e for e in schema_errors if not any(e["field"] == f or e["field"].startswith(f + ".") for f in seen)]
-    if errors or model is None:
-        raise InvalidFields(errors or [{"field": "body", "message": "expected a study definition"}])
-    return model.model_dump()
-
-
 @router.get("", response_model=list[StudyOut])
-def list_studies(ctx: ContextDep) -> list[dict]:
-    """Every study, newest first."""
-    return services.list_studies(ctx)
+def list_studies(ctx: ContextDep, include_archived: Annotated[bool, Query(
+        description="also the archived studies")] = False) -> list[dict]:
+    """Every study, newest first (archived ones only if asked for)."""
+    return services.list_studies(ctx, include_archived=include_archived)
 
 
 @router.post("", response_model=StudyOut, status_code=status.HTTP_201_CREATED, openapi_extra=STUDY_IN)
 def create_study(body: StudyBody, ctx: ContextDep) -> dict:
     """Create a study (status draft; open it to let participants join). A 422 lists every bad field in errors."""
-    return services.create_study(ctx, validated_study(body))
+    return services.create_study(ctx, body)
 
 
 @router.get("/{study_id}", response_model=StudyOut)
@@ -75,9 +49,33 @@ def study_spec(study_id: str, ctx: ContextDep) -> dict:
 def update_study(study_id: str, body: StudyBody, ctx: ContextDep) -> dict:
     """Change any fields of a draft study (the others keep their values); an open or closed study only its name,
     pilot flag, completion codes, completion URL and timeout (409 for the rest: clone it instead)."""
-    current = services.editable_spec(services.get_study(ctx, study_id))
-    merged = validated_study({**current, **body})
-    return services.update_study(ctx, study_id, {k: merged[k] for k in body})
+    return services.update_study(ctx, study_id, body)
+
+
+@router.delete("/{study_id}", status_code=status.HTTP_204_NO_CONTENT, response_class=Response)
+def delete_study(study_id: str, ctx: ContextDep) -> Response:
+    """Delete a study without participants (409 if it has any: archive it instead, nothing is lost)."""
+    services.delete_study(ctx, study_id)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)
+
+
+@router.post("/{study_id}/archive", response_model=StudyOut)
+def archive_study(study_id: str, ctx: ContextDep) -> dict:
+    """Hide the study from the list (an open one is closed first); its data stay."""
+    return services.archive_study(ctx, study_id)
+
+
+@router.post("/{study_id}/unarchive", response_model=StudyOut)
+def unarchive_study(study_id: str, ctx: ContextDep) -> dict:
+    """Show an archived study in the list again (it stays closed)."""
+    return services.archive_study(ctx, study_id, archived=False)
+
+
+@router.get("/{study_id}/statistics", response_model=StatisticsOut)
+def statistics(study_id: str, ctx: ContextDep, include_pilot: Annotated[bool, Query(
+        description="also pilot participants")] = False) -> dict:
+    """Funnel by stage, completion-time distribution and condition x task-order counts."""
+    return services.study_statistics(ctx, study_id, include_pilot=include_pilot)
 
 
 @router.post("/{study_id}/clone", response_model=StudyOut, status_code=status.HTTP_201_CREATED)
@@ -120,6 +118,20 @@ def erase_participant(study_id: str, participant_id: ParticipantId,
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
+@router.post("/{study_id}/participants/{participant_id}/restore", response_model=ParticipantBaseOut)
+def restore_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict:
+    """Bring back a participant who timed out (where they were), failed the quiz (fresh attempts) or declined
+    consent; logged as a "restored" event. 409 for anyone else."""
+    return services.restore_participant(ctx, study_id, participant_id)
+
+
+@router.post("/{study_id}/participants/{participant_id}/help", response_model=ParticipantBaseOut)
+def help_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict:
+    """Move a stuck participant past their stage (instructions, quiz, the current task, questionnaire); logged
+    as a "helped_on" event. 409 at consent or after the end."""
+    return services.help_on(ctx, study_id, participant_id)
+
+
 @router.get("/{study_id}/erasures", response_model=list[ErasureOut])
 def erasures(study_id: str, ctx: ContextDep) -> list[dict]:
     """The study's erasure audit log: which participant number, who, when, why."""
@@ -132,8 +144,8 @@ def belief(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dic
     return services.belief_summary(ctx, study_id, participant_id)
 
 
-@formulas.get("/describe", response_model=FormulaOut)
-def describe_formula(formula: Annotated[str, Query(min_length=1, max_length=2000,
+@formulas.get("/describe", response_model=FormulaDescriptionOut)
+def describe_formula(formula: Annotated[str, Query(min_length=1, max_length=2000, pattern=FORMULA_PATTERN,
                                                    description="e.g. F(bowl) & (!fork U knife)")]) -> dict:
     """A custom task's ground-truth formula in canonical form and in plain words (422 says what is wrong)."""
     return services.describe_formula(formula)

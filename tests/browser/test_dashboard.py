@@ -239,8 +239,11 @@ def test_experimenter_creates_and_opens_a_study(server_factory: Any, browser_pag
     assert created["tasks"][0]["name"] == "Plate before bowl" and created["n_tests"] == 2
     assert created["robot_speed"] == 1.5
     assert created["questionnaire"] == [
-        {"id": "easy", "text": "Teaching was easy.", "kind": "likert5", "required": True}]
+        {"id": "easy", "text": "Teaching was easy.", "kind": "likert5", "required": True, "expected": None}]
+    asked: list[str] = []
+    page.once("dialog", lambda dialog: (asked.append(dialog.message), dialog.accept()))
     page.click("#open-study")
     page.wait_for_selector("#close-study")
+    assert "Anyone with the link can join" in asked[0]  # opening is confirmed first
     assert study()["status"] == "open"
     assert page.input_value("#join-link") == f"{server.url}/study/{study_id}/join"

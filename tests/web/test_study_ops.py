@@ -283,7 +283,8 @@ def test_exports_booleans_durations_codebook_and_zip(app_client) -> None:
     assert r.status_code == 200 and r.headers["content-type"] == "application/zip"
     archive = zipfile.ZipFile(io.BytesIO(r.content))
     assert sorted(archive.namelist()) == sorted(["participants.csv", "events.csv", "steps.csv", "beliefs.csv",
-                                                 "questionnaire.csv", "codebook.csv", "study.json"])
+                                                 "questionnaire.csv", "codebook.csv", "study.json",
+                                                 "datapackage.json"])
     assert json.loads(archive.read("study.json"))["id"] == study
     assert str(done["participant_id"]) in archive.read("participants.csv").decode()
     assert app_client.get("/api/v1/studies/nope/exports/codebook.csv", headers=EXP).status_code == 404

@@ -1,0 +1,276 @@
+"""The one validator of a study definition, used by the API (its schema is this model) and by the services.
+
+Each field's type and bounds are declared once, in the pydantic model below; rules that tie fields together (a
+custom task's formula, distinct conditions, quiz answers among the options, attention checks with an expected
+answer, unique item ids) are checked after it. Every problem is reported at once, each with its field's path
+and a plain message (plain_words.py).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+import re
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+
+from ..core import session as core
+from ..core.domain import DINNER_OBJECTS, DINNER_TASK_FORMULAS, get_domain
+from ..core.ltl import to_text
+from ..core.priors import NAMED_PRIORS
+from ..core.puns import CRITERIA
+from ..errors import InvalidFields, InvalidInput
+from .plain_words import field_errors, number_ranges, shown
+
+MAX_BALANCED_TASKS = 5  # 5! = 120 orders, each crossed with every condition
+MAX_PLACES = 100_000  # participants a study may take
+CODE_PATTERN = r"^[A-Za-z0-9_\-]+$"
+ID_PATTERN = r"^[A-Za-z0-9_\-]+$"
+
+# What each pattern means, for its error message (field paths with list positions as *).
+PATTERN_HINTS = {
+    **{name: "letters, digits, - or _ (as in Prolific's completion codes)" for name in (
+        "completion_code", "declined_consent_code", "failed_quiz_code", "failed_attention_code", "timed_out_code",
+        "withdrew_code", "screened_out_code")},
+    "completion_url": "a web address starting with https:// or http://, without spaces",
+    "tasks.*.ground_truth": (f"template clauses F(p), G(!p) or (!b U a) over {', '.join(DINNER_OBJECTS)}, "
+                             "joined by &, e.g. F(bowl) & (!fork U knife)"),
+    "formula": (f"template clauses F(p), G(!p) or (!b U a) over {', '.join(DINNER_OBJECTS)}, joined by &, "
+                "e.g. F(bowl) & (!fork U knife)"),
+    "quiz.*.options.*": "some text",
+    "questionnaire.*.id": "letters, digits, - or _",
+    "quiz.*.id": "letters, digits, - or _",
+}
+
+
+def integral(value: Any) -> Any:
+    """18.0 is the whole number 18 (JSON and its schema do not tell them apart), also inside a dict or list;
+    anything else is left to the field's own check."""
+    if isinstance(value, float) and value.is_integer():
+        return int(value)
+    if isinstance(value, dict):
+        return {k: integral(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [integral(v) for v in value]
+    return value
+
+
+class Definition(BaseModel):
+    """Unknown fields are an error: a typo should not pass silently."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _whole_numbers(cls, value: Any) -> Any:
+        return integral(value)
+
+
+def Code(meaning: str) -> Any:  # noqa: N802 (a Field factory, named like the type it describes)
+    """An optional completion code for one outcome; the completion URL's {code} is replaced with it."""
+    return Field(None, min_length=1, max_length=64, pattern=CODE_PATTERN, description=f"code for those who {meaning}")
+
+
+def formula_pattern() -> str:
+    """A regular expression of the formulas a custom task takes: template clauses of the dinner task joined by &
+    (or true, no clause at all)."""
+    space = get_domain("dinner").clause_space
+    clauses = sorted((re.escape(to_text(c.formula())).replace(r"\ ", r"\s+") for c in space.clauses), key=len,
+                     reverse=True)
+    one = "(?:" + "|".join(clauses) + ")"
+    return rf"^\s*(?:true|{one}(?:\s*&\s*{one})*)\s*$"
+
+
+FORMULA_PATTERN = formula_pattern()
+
+
+def when(condition: dict[str, Any], then: dict[str, Any]) -> dict[str, Any]:
+    """JSON Schema's if/then over an object's properties (generators of clients ignore it; validators apply it)."""
+    return {"if": {"properties": condition, "required": list(condition)}, "then": then}
+
+
+def _task_rules() -> list[dict[str, Any]]:
+    """What the hand-written rules below say about a task, in JSON Schema (so the schema is the validator)."""
+    named = [when({"key": {"const": key}}, {"properties": {"ground_truth": {"enum": [None, "", formula]}}})
+             for key, formula in DINNER_TASK_FORMULAS.items()]
+    return [*named,
+            when({"key": {"const": "custom"}}, {"properties": {"ground_truth": {"type": "string",
+                                                                                "pattern": FORMULA_PATTERN}},
+                                                 "required": ["ground_truth"]}),
+            when({"key": {"const": "none"}}, {"properties": {"ground_truth": {"enum": [None, ""]}}})]
+
+
+class TaskIn(Definition):
+    """One task of a study: a named dinner task, a custom formula, or none (ground truth unknown)."""
+
+    model_config = ConfigDict(json_schema_extra={"allOf": _task_rules()})
+
+    key: Literal["task1", "task2", "custom", "none"]
+    ground_truth: str | None = Field(None, max_length=2000, description="custom tasks only: an LTL formula over "
+                                     "the dinner objects, e.g. F(bowl) & (!fork U knife)")
+    name: str | None = Field(None, max_length=200)
+    instructions: str | None = Field(None, max_length=5000)
+
+
+class ItemIn(Definition):
+    """A questionnaire item; an attention check is shown as a 1-5 agreement item with an expected answer."""
+
+    model_config = ConfigDict(json_schema_extra=when(
+        {"kind": {"const": "attention"}}, {"properties": {"expected": {"type": "integer"}}, "required": ["expected"]}))
+
+    id: str = Field(min_length=1, max_length=64, pattern=ID_PATTERN)
+    text: str = Field(max_length=2000)
+    kind: Literal["likert5", "rating10", "text", "attention"]
+    required: bool = True
+    expected: int | None = Field(None, ge=1, le=5,
+                                 description="attention checks (shown as a 1-5 agreement scale): the expected answer")
+
+
+class QuizItemIn(Definition):
+    """A comprehension-quiz question with its options and the correct one."""
+
+    # correct is the number of one of the options: for each number of options, its bound
+    model_config = ConfigDict(json_schema_extra={"allOf": [
+        when({"options": {"maxItems": n}}, {"properties": {"correct": {"maximum": n - 1}}}) for n in range(2, 10)]})
+
+    id: str = Field(min_length=1, max_length=64, pattern=ID_PATTERN)
+    text: str = Field(min_length=1, max_length=2000)
+    options: list[Annotated[str, Field(min_length=1, max_length=500, pattern=r"\S")]] = Field(min_length=2,
+                                                                                              max_length=10)
+    correct: int = Field(ge=0, le=9, description="index (from 0) of the correct option")
+
+
+class StudyIn(Definition):
+    """A study definition: what creates a study (and what GET /studies/{id}/spec gives back)."""
+
+    model_config = ConfigDict(json_schema_extra=when(
+        {"task_order": {"const": "balanced"}}, {"properties": {"tasks": {"maxItems": MAX_BALANCED_TASKS}}}))
+
+    name: str = Field("Untitled study", max_length=200)
+    tasks: list[TaskIn] = Field(min_length=1, max_length=10)
+    conditions: list[Literal["active", "random", "batch"]] = Field(["active"], min_length=1, max_length=3,
+                                                                   json_schema_extra={"uniqueItems": True})
+    assignment: Literal["random", "balanced"] = "balanced"
+    n_practice: int = Field(1, ge=0, le=20)
+    n_demonstrations: int = Field(2, ge=0, le=20)
+    n_queries: int = Field(3, ge=0, le=20)
+    n_tests: int = Field(3, ge=0, le=20)
+    prior: Literal[tuple(NAMED_PRIORS)] = core.DEFAULT_PRIOR  # type: ignore[valid-type]
+    criterion: Literal[CRITERIA] = "min-regret"  # type: ignore[valid-type]
+    questionnaire: list[ItemIn] = Field(default_factory=list, max_length=100)
+    consent_text: str | None = Field(None, max_length=20000)
+    consent_version: str | None = Field(None, max_length=64)
+    completion_url: str | None = Field(None, max_length=500, pattern=r"^https?://\S+$",
+                                       description="redirect at the end; {code} is replaced with the outcome's code")
+    pilot: bool = False
+    completion_code: str | None = Code("completed the study (on Prolific: approve)")
+    declined_consent_code: str | None = Code("declined consent (on Prolific: ask them to return)")
+    failed_quiz_code: str | None = Code("failed the comprehension quiz (on Prolific: screen out or return)")
+    failed_attention_code: str | None = Code("finished but failed an attention check (on Prolific: review, "
+                                             "reject per its attention-check policy)")
+    timed_out_code: str | None = Code("were idle past timeout_minutes (on Prolific: ask them to return)")
+    withdrew_code: str | None = Code("withdrew after consenting (usually empty: Prolific counts them as returned)")
+    screened_out_code: str | None = Code("were screened out, for outcomes without their own code (older studies)")
+    task_order: Literal["fixed", "random", "balanced"] = "fixed"
+    quiz: list[QuizItemIn] = Field(default_factory=list, max_length=20)
+    quiz_max_attempts: int = Field(2, ge=1, le=10)
+    timeout_minutes: int | None = Field(None, ge=1, le=1440)
+    robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
+                               "than real time (recordings keep real time)")
+    places: int | None = Field(None, ge=1, le=MAX_PLACES, description="participants the study takes, counted as "
+                               "Prolific does (finished plus under way); then joining answers 409 (empty: no limit)")
+
+
+STUDY_FIELDS = tuple(StudyIn.model_fields)
+STUDY_RANGES = number_ranges(StudyIn)
+
+
+def describe_formula(formula: str) -> dict[str, str]:
+    """A custom task's formula in canonical form and in plain words; InvalidInput says what is wrong with it."""
+    space = get_domain("dinner").clause_space
+    try:
+        mask = space.mask_of_formula(formula)
+    except ValueError as exc:
+        raise InvalidInput(f"ground_truth: {exc}") from exc
+    return {"formula": space.text_of(mask), "description": space.describe(mask).capitalize() + "."}
+
+
+def _dicts(items: Any) -> Iterator[tuple[int, dict[str, Any]]]:
+    for i, item in enumerate(items if isinstance(items, list) else []):
+        if isinstance(item, dict):
+            yield i, item
+
+
+def _task_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
+    for i, task in _dicts(spec.get("tasks")):
+        key, formula = task.get("key"), task.get("ground_truth") or None
+        if not isinstance(key, str) or not isinstance(formula, (str, type(None))):
+            continue  # the model names a key or formula of the wrong kind
+        where = f"tasks.{i}.ground_truth"
+        if key in DINNER_TASK_FORMULAS and formula and formula != DINNER_TASK_FORMULAS[key]:
+            yield where, f"{key} has a fixed ground truth; leave this empty"
+        elif key == "custom" and not formula:
+            yield where, (f"a custom task needs a formula over {', '.join(DINNER_OBJECTS)}, e.g. F(bowl) & "
+                          "(!fork U knife)")
+        elif key == "custom" and not re.match(FORMULA_PATTERN, formula):
+            yield where, f"must be {PATTERN_HINTS['tasks.*.ground_truth']}, got {shown(formula)}"
+        elif key == "custom":
+            try:
+                describe_formula(formula)
+            except InvalidInput as exc:
+                yield where, exc.message.removeprefix("ground_truth: ")
+        elif key == "none" and formula:
+            yield where, "the key 'none' means the ground truth is unknown; choose 'custom' to give a formula"
+
+
+def _item_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
+    for field in ("questionnaire", "quiz"):
+        seen: set[Any] = set()
+        for i, item in _dicts(spec.get(field)):
+            item_id = item.get("id")
+            if not isinstance(item_id, str):
+                continue  # the model names a missing or non-text id
+            if item_id in seen:
+                yield f"{field}.{i}.id", f"{shown(item_id)} is already the id of an earlier item; each needs its own"
+            seen.add(item_id)
+    for i, item in _dicts(spec.get("questionnaire")):
+        if item.get("kind") == "attention" and item.get("expected") is None:
+            yield f"questionnaire.{i}.expected", "an attention check needs the expected answer, a whole number 1-5"
+    for i, item in _dicts(spec.get("quiz")):
+        options, correct = item.get("options"), item.get("correct")
+        if isinstance(options, list) and isinstance(correct, int) and not isinstance(correct, bool) \
+                and len(options) >= 2 and not 0 <= correct < len(options):
+            yield f"quiz.{i}.correct", (f"must be the number of the correct option, from 0 to {len(options) - 1}, "
+                                        f"got {correct}")
+
+
+def _study_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
+    conditions = spec.get("conditions")
+    if isinstance(conditions, list) and len({str(c) for c in conditions}) != len(conditions):
+        yield "conditions", "each protocol may be listed once"
+    tasks = spec.get("tasks")
+    if spec.get("task_order") == "balanced" and isinstance(tasks, list) and len(tasks) > MAX_BALANCED_TASKS:
+        yield "task_order", (f"balanced uses every order of the tasks; at most {MAX_BALANCED_TASKS} tasks "
+                             f"({len(tasks)} given): use random instead")
+    yield from _task_problems(spec)
+    yield from _item_problems(spec)
+
+
+def validate_study(spec: Any) -> StudyIn:
+    """The study definition checked field by field; InvalidFields lists every unacceptable field at once."""
+    if not isinstance(spec, dict):
+        raise InvalidFields([{"field": "body", "message": "expected a study definition (an object with tasks)"}])
+    model = None
+    try:
+        model = StudyIn.model_validate(spec)
+        errors = []
+    except ValidationError as exc:
+        errors = field_errors(exc.errors(), PATTERN_HINTS, STUDY_RANGES)
+    bad = {e["field"] for e in errors}
+    for field, message in _study_problems(spec):
+        if not any(field == f or field.startswith(f + ".") for f in bad):
+            errors.append({"field": field, "message": message})
+            bad.add(field)
+    if errors or model is None:
+        raise InvalidFields(errors)
+    return model
