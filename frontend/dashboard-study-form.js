@@ -8,6 +8,13 @@ import { h } from "./dom.js";
 // What can change once participants can join (services/studies.py LIVE_FIELDS).
 export const LIVE_FIELDS = ["name", "pilot", "completion_code", "screened_out_code", "completion_url", "timeout_minutes"];
 const TASK_HINT = "e.g. F(bowl) & (!fork U knife)";
+// The consent page's structured sections (services/page_settings.py CONSENT_FORM_FIELDS): [name, label, rows].
+const CONSENT_FORM = [
+  ["researcher", "Researcher(s)", 1], ["institution", "Institution", 1], ["contact", "Contact (e-mail)", 1],
+  ["ethics_approval", "Ethics approval (board and reference)", 1], ["duration", "Duration (empty: the page's estimate)", 1],
+  ["payment", "Payment", 1], ["recorded", "What is recorded (empty: the default)", 2],
+  ["retention", "Data retention", 2], ["withdrawal", "Right to withdraw (empty: the default)", 2],
+];
 
 function removeButton() {
   return h("button", { type: "button", class: "ghost", onclick: (e) => e.target.closest(".row, .block").remove() }, "Remove");
@@ -150,6 +157,8 @@ export function studyFormView({ choices, study = null, onSaved }) {
       screened_out_code: optional(f.get("screened_out_code")), timeout_minutes: int("timeout_minutes"),
       robot_speed: optional(f.get("robot_speed")) === null ? undefined : Number(f.get("robot_speed")),
       pilot: Boolean(f.get("pilot")),
+      consent_form: Object.fromEntries(CONSENT_FORM.map(([name]) => [name, optional(f.get(`consent_${name}`))])),
+      allow_anonymous: Boolean(f.get("allow_anonymous")), quiz_feedback: Boolean(f.get("quiz_feedback")),
     };
   };
 
@@ -216,12 +225,20 @@ export function studyFormView({ choices, study = null, onSaved }) {
     section("Comprehension quiz (after the instructions)", quiz,
       h("div", { class: "row" },
         h("button", { type: "button", class: "ghost", id: "add-quiz", onclick: () => addQuiz() }, "Add a question"),
-        number("quiz_max_attempts", "Attempts before screening out", 1, 10))),
+        number("quiz_max_attempts", "Attempts before screening out", 1, 10)),
+      h("label", { class: "inline" }, checkbox("quiz_feedback", d.quiz_feedback ?? true),
+        "After a failed attempt, say which answers were wrong")),
     section("Questionnaire (an attention check is shown as an agreement item)", items,
       h("button", { type: "button", class: "ghost", id: "add-item", onclick: () => addItem() }, "Add an item")),
     section("Consent",
       field("Consent text (empty: the default text, which explains withdrawal)", h("textarea", { name: "consent_text", rows: 3 }), "consent_text", { cls: "wide" }),
-      field("Consent version", h("input", { name: "consent_version", value: editing ? study.consent_version : "", placeholder: "1" }), "consent_version")),
+      field("Consent version", h("input", { name: "consent_version", value: editing ? study.consent_version : "", placeholder: "1" }), "consent_version"),
+      h("div", { class: "row wrap" }, CONSENT_FORM.map(([name, label, rows]) => field(label, rows > 1
+        ? h("textarea", { name: `consent_${name}`, rows })
+        : h("input", { name: `consent_${name}`, value: study?.consent_form?.[name] ?? "" }), `consent_form.${name}`,
+      { cls: rows > 1 ? "wide" : "" }))),
+      h("label", { class: "inline" }, checkbox("allow_anonymous", d.allow_anonymous),
+        "A link without PROLIFIC_PID may take part without an id (otherwise the page asks for the Prolific ID)")),
     h("fieldset", { "data-live": "yes" }, h("legend", {}, "Completion on Prolific"),
       field("Completion redirect ({code} is replaced)", h("input", { name: "completion_url", id: "completion_url",
         value: study?.completion_url ?? "", placeholder: "https://app.prolific.com/submissions/complete?cc={code}" }), "completion_url", { cls: "wide" }),
@@ -234,6 +251,9 @@ export function studyFormView({ choices, study = null, onSaved }) {
       h("a", { href: editing ? `#/study/${encodeURIComponent(study.id)}` : "#/", class: "button ghost" }, "Cancel")),
     message].filter(Boolean));
   if (editing) form.querySelector("[name=consent_text]").value = study.consent_text;
+  for (const [name, , rows] of CONSENT_FORM) {
+    if (rows > 1) form.querySelector(`[name=consent_${name}]`).value = study?.consent_form?.[name] ?? "";
+  }
   if (frozen) {
     for (const set of form.querySelectorAll("fieldset[data-live=no]")) set.disabled = true;
   }

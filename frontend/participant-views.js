@@ -17,19 +17,42 @@ function heading(text) {
   return h("h1", { tabindex: "-1", class: "focus-target" }, text);
 }
 
+/** The study's information sheet: its text, then the structured sections (who, contact, ethics approval,
+ * duration, payment, what is recorded, retention, withdrawal) and the version agreed to. */
+export function consentSheet(state) {
+  const consent = state.consent;
+  const sections = [...(consent.sections || [])];
+  if (!sections.some((s) => s.key === "duration") && state.progress?.minutes_left) {
+    const at = sections.findIndex((s) => ["payment", "recorded", "retention", "withdrawal"].includes(s.key));
+    const duration = { key: "duration", heading: "How long it takes", text: `About ${state.progress.minutes_left} minutes.` };
+    sections.splice(at < 0 ? sections.length : at, 0, duration);
+  }
+  return h("div", { class: "consent-sheet", id: "consent-sheet" },
+    h("p", { class: "consent-text" }, consent.text),
+    sections.map((s) => h("section", { class: "consent-section", "data-section": s.key },
+      h("h2", {}, s.heading), h("p", {}, s.text))),
+    h("p", { class: "consent-version" }, `Information sheet version ${consent.version}`,
+      consent.given_at ? ` · you agreed on ${new Date(consent.given_at).toLocaleString()}` : ""));
+}
+
+function printButton() {
+  return h("button", { type: "button", id: "print-consent", onclick: () => window.print() }, "Print or save a copy");
+}
+
 export function consentView(state, { onAgree, onDecline }) {
-  return h("section", { class: "card narrow" },
-    heading("Welcome"),
-    h("p", { class: "consent-text" }, state.consent.text),
-    h("p", {}, "Do you agree to take part?"),
-    h("div", { class: "buttons" },
+  return h("section", { class: "card narrow consent" },
+    heading("About this study"),
+    consentSheet(state),
+    h("div", { class: "buttons no-print" }, printButton()),
+    h("p", { class: "question no-print" }, "Do you agree to take part?"),
+    h("div", { class: "buttons no-print" },
       h("button", { class: "primary", onclick: onAgree }, "I agree, continue"),
       h("button", { onclick: onDecline }, "I do not agree")));
 }
 
-export function instructionsView(_state, { onStart }) {
-  return h("section", { class: "card narrow" },
-    heading("How this works"),
+/** What the study asks of the participant (shown before the first task, and again from the quiz). */
+export function instructionsBody() {
+  return h("div", { class: "instructions-body" },
     h("p", {}, "You will teach a robot arm to set a dinner table. The arm takes five objects (a dinner plate, a small ",
       "plate, a bowl, a knife and a fork) from Table A, on the right of the 3D view, and puts them on Table B, on ",
       "the left."),
@@ -42,7 +65,13 @@ export function instructionsView(_state, { onStart }) {
       h("li", {}, h("strong", {}, "It shows you. "), "At the end of each task the robot sets the table by itself ",
         "a few times so you can see what it has learned.")),
     h("p", {}, "The order in which things are placed can matter. Before each task you will see what the table should ",
-      "look like at the end."),
+      "look like at the end."));
+}
+
+export function instructionsView(_state, { onStart }) {
+  return h("section", { class: "card narrow" },
+    heading("How this works"),
+    instructionsBody(),
     h("div", { class: "buttons" }, h("button", { class: "primary", onclick: onStart }, "Start")));
 }
 
@@ -163,21 +192,35 @@ function executionPanel(state, live, { onStart, onAssess, onReplay, pending }) {
   }
   const finalLabels = execution.trace?.length ? execution.trace[execution.trace.length - 1] : [];
   const missed = events.filter((o) => !finalLabels.includes(o));
+  const notPlaced = state.objects.filter((o) => !events.includes(o));
   const replaying = live.moving;
+  // The answer waits until the page has played the robot's attempt to its end (or the page cannot tell).
+  const shown = live.shown ?? { fraction: null, complete: true };
+  const unseen = !shown.complete;
+  const locked = pending || replaying || unseen;
+  const percent = shown.fraction === null ? null : Math.round(100 * shown.fraction);
+  const status = replaying
+    ? statusLine(live.caption ? `${live.caption}. The buttons work again when it has finished.` : "The robot is busy.", true)
+    : unseen
+      ? statusLine(`The robot has finished; the 3D view is still showing it (${percent ?? 0}% shown). `
+        + "The buttons work when it has been shown to the end.", true)
+      : statusLine("The robot has finished.");
   return h("div", {},
     heading(title),
-    replaying
-      ? statusLine(live.caption ? `${live.caption}. The buttons work again when it has finished.` : "The robot is busy.", true)
-      : statusLine("The robot has finished."),
-    h("p", { class: "placed" }, h("strong", {}, "It placed, in this order: "), list(events)),
-    missed.length ? h("p", { class: "placed" }, h("strong", {}, "Not in place at the end: "), list(missed)) : null,
+    status,
+    h("div", { class: "outcome", id: "outcome" },
+      h("p", { class: "placed" }, h("strong", {}, "It placed, in this order: "),
+        events.length ? events.map((o, i) => `${i + 1}. the ${pretty(o)}`).join(", ") : "nothing"),
+      h("p", { class: "placed not-placed" }, h("strong", {}, "It did not place: "),
+        notPlaced.length ? theList(notPlaced) : "nothing (it placed all five objects)"),
+      missed.length ? h("p", { class: "placed" }, h("strong", {}, "Not in place at the end: "), theList(missed)) : null),
     h("p", { class: "question" }, query
       ? "Is this an acceptable way to set the table for this task?"
       : "Did the robot do the task correctly?"),
     h("div", { class: "buttons" },
-      h("button", { class: "primary good", id: "acceptable", disabled: pending || replaying,
+      h("button", { class: "primary good", id: "acceptable", disabled: locked,
         onclick: () => onAssess(true) }, query ? "Acceptable" : "Yes, correct"),
-      h("button", { class: "primary bad", id: "unacceptable", disabled: pending || replaying,
+      h("button", { class: "primary bad", id: "unacceptable", disabled: locked,
         onclick: () => onAssess(false) }, query ? "Unacceptable" : "No, not correct")),
     live.view ? h("div", { class: "buttons" },
       h("button", { id: "watch-again", disabled: pending || replaying, onclick: onReplay }, "Watch it again")) : null);

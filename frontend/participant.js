@@ -13,6 +13,8 @@ const TICK_WITH_EVENTS_MS = 5000; // with them: only the lease heartbeat and a s
 const HEARTBEAT_MS = 5000;
 const VIEWER_STALL_MS = 8000; // no 3D view connected for this long while one is shown: reload it
 const REDIRECT_SECONDS = 8;
+const PLAYBACK_POLL_MS = 250; // how often the page reads how far the 3D view has played the robot's attempt
+const NO_PLAYER_GRACE_MS = 15000; // finished, yet no player to read for this long: the answer is not held back
 
 const api = new ParticipantApi(tokenFromLocation());
 const tabId = randomId(12); // per page load: a reload frees the old lease on pagehide
@@ -44,6 +46,8 @@ let events = null; // the EventSource of the server's change notices
 let eventsOpen = false;
 let refreshing = null; // the refresh under way; a change notice meanwhile asks for one more
 let refreshAgain = false;
+// How much of the robot's attempt the 3D view has played (per step: task, kind, index): the answer waits for it.
+let shown = { step: null, playing: false, fraction: null, complete: true, unreadSince: null };
 
 function showBanner(text) {
   el.banner.textContent = text;
@@ -124,7 +128,7 @@ const handlers = {
     return next;
   }),
   onStartExecution: () => act(() => api.startExecution(guard())),
-  onAssess: (acceptable) => act(() => api.assess(acceptable, guard())),
+  onAssess: (acceptable) => act(() => api.assess(acceptable, guard(), shown.fraction)),
   onSubmit: (answers) => act(() => api.answerQuestionnaire(answers)),
   onQuiz: (answers) => act(() => api.act("/me/quiz", { answers })),
   onWithdraw: () => act(() => api.act("/me/withdraw", undefined)),
@@ -167,7 +171,7 @@ function render(force = false) {
   const intro = state.stage === "task" && !introAcknowledged();
   const sig = JSON.stringify([state.stage, state.task, state.step, state.demonstration, state.execution,
     state.completion?.code, state.quiz, state.progress, live.moving, live.caption, live.view, pending, intro,
-    confirming]);
+    confirming, shown.complete, shown.fraction === null ? null : Math.round(shown.fraction * 20)]);
   if (sig === signature && !force) return;
   signature = sig;
   const key = JSON.stringify([state.stage, state.task?.index, state.step, state.execution?.status, intro]);
@@ -201,7 +205,7 @@ function render(force = false) {
 function renderTask(withPending, moved) {
   el.screen.hidden = true;
   el.task.hidden = false;
-  const panel = views.taskPanel(state, live, { ...withPending, onStart: handlers.onStartExecution });
+  const panel = views.taskPanel(state, { ...live, shown }, { ...withPending, onStart: handlers.onStartExecution });
   // Keep the keyboard focus on the same button across a re-render (the panel is rebuilt).
   const focused = document.activeElement?.id || document.activeElement?.dataset?.object;
   el.panel.replaceChildren(panel);
@@ -271,6 +275,44 @@ function watchViewer() {
   } else if (Date.now() - viewer.noWatcherSince > VIEWER_STALL_MS) {
     loadFrame(); // the view's connection was lost (server restart, network): connect again
   }
+}
+
+/** The seconds the 3D view's player has played of the recorded attempt (viser's hidden playback slider), or null. */
+function playbackSeconds() {
+  try {
+    const thumb = el.frame.contentDocument?.querySelector('.mantine-Slider-root [role="slider"]');
+    const seconds = thumb ? Number(thumb.getAttribute("aria-valuenow")) : NaN;
+    return Number.isFinite(seconds) ? seconds : null;
+  } catch {
+    return null; // the frame is between pages
+  }
+}
+
+/** Follow how much of the robot's attempt has been shown; the answer buttons unlock once it has played to the end. */
+function watchPlayback() {
+  const ex = state?.stage === "task" ? state.execution : null;
+  if (!ex || ex.status === "not_started") return;
+  const step = JSON.stringify([state.task.index, ex.kind, ex.index]);
+  const motion = Number(ex.motion_seconds) || 0;
+  const playing = Boolean(viewer.url?.includes("playbackPath=")) && viewer.available !== false;
+  if (shown.step !== step || (playing && !shown.playing)) {
+    shown = { step, playing, fraction: playing && motion > 0 ? 0 : null, complete: !playing || motion <= 0,
+      unreadSince: null };
+  }
+  if (shown.complete && shown.fraction === 1) return;
+  const before = JSON.stringify(shown);
+  const seconds = playing ? playbackSeconds() : null;
+  if (seconds !== null && motion > 0) {
+    shown.unreadSince = null;
+    shown.fraction = Math.max(shown.fraction ?? 0, Math.min(1, seconds / motion));
+    if (shown.fraction >= 0.995) { shown.fraction = 1; shown.complete = true; }
+  } else if (ex.status === "finished" && !shown.complete) {
+    // No player to read (the view failed to load): after a grace period the answer is allowed, and the
+    // fraction sent with it says how much was seen (null: unknown).
+    shown.unreadSince ??= Date.now();
+    if (Date.now() - shown.unreadSince > NO_PLAYER_GRACE_MS) shown.complete = true;
+  }
+  if (JSON.stringify(shown) !== before) render();
 }
 
 /** The last screen (finished, or left early): `view(secondsLeft)` builds it; with a redirect address it counts
@@ -375,6 +417,7 @@ async function tick() {
   setTimeout(tick, eventsOpen ? TICK_WITH_EVENTS_MS : TICK_MS);
 }
 
+setInterval(watchPlayback, PLAYBACK_POLL_MS);
 window.addEventListener("pagehide", () => { if (!finished()) api.releaseTab(tabId); });
 window.addEventListener("beforeunload", warnBeforeLeaving);
 

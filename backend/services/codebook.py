@@ -85,6 +85,11 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "answered_at": ("datetime", "when the step was answered (demonstration finished or verdict given)", TIME),
         "duration_seconds": ("number", "answered_at minus shown_at", "seconds"),
         "n_objects": ("integer", "objects placed in the step", "count"),
+        "shown_fraction": ("number", "how much of the robot's recorded motion the participant's page had played "
+                           "when the verdict was given (1: to the end; empty: not reported, e.g. no 3D view or "
+                           "a demonstration)", "fraction 0-1"),
+        "replays_watched": ("integer", "times the participant pressed \"Watch it again\" before the verdict "
+                            "(empty for demonstrations)", "count"),
     },
     "beliefs": {
         "step": ("integer", "learning step: 0 is the prior, k the belief after the k-th demonstration or assessed "

@@ -31,7 +31,7 @@ PARTICIPANT_COLUMNS = [
 
 STEP_COLUMNS = [
     "participant_id", "condition", "task_position", "task_index", "task", "step_kind", "step_index", "shown_at",
-    "answered_at", "duration_seconds", "n_objects", "acceptable",
+    "answered_at", "duration_seconds", "n_objects", "acceptable", "shown_fraction", "replays_watched",
 ]
 
 
@@ -135,7 +135,9 @@ def _step_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[An
             yield [p.id, p.condition, task_sequence(study, p).index(e.task_index), e.task_index,
                    study.tasks[e.task_index]["key"], e.step_kind, e.step_index, iso(shown.get(key)),
                    iso(e.created_at), _seconds(shown.get(key), e.created_at), len(objects or []),
-                   pl.get("acceptable") if e.kind == "assessment" else None]
+                   pl.get("acceptable") if e.kind == "assessment" else None,
+                   pl.get("shown_fraction") if e.kind == "assessment" else None,
+                   pl.get("replays") if e.kind == "assessment" else None]
             shown[key] = e.created_at
 
 

@@ -15,6 +15,7 @@ from ..db import repository as repo
 from ..db.tables import StudyRow, utcnow
 from ..errors import Conflict, InvalidInput, NotFound, ResumeRefused
 from .context import Context, app_version, commit
+from .page_settings import consent_digest
 from .state import Action, act, end_participation, require_stage, state_view, task_sequence
 from .studies import ITEM_KINDS
 from .teaching import begin_task, complete
@@ -121,7 +122,8 @@ def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str,
             raise Conflict(f"consent text version {consent_version!r} is not the current one "
                            f"({a.study.consent_version!r}); reload the page and read it again")
         now = utcnow()
-        a.log("consent", {"agree": agree, "consent_version": consent_version, "at": now.isoformat()})
+        a.log("consent", {"agree": agree, "consent_version": consent_version, "at": now.isoformat(),
+                          "consent_digest": consent_digest(a.study)})
         if agree:
             a.participant.consent_at = now
             a.participant.consent_version = consent_version

@@ -19,6 +19,7 @@ from ..sim.recordings import RecordingId
 from . import executions
 from .context import Context, app_version, aware, iso
 from .guidance import lay_summary, progress, required_objects
+from .page_state import extend_state
 from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
@@ -170,7 +171,8 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
                 if ex is not None and (ex["kind"], ex["index"]) == (kind, index):
                     out["execution"] = {"kind": ex["kind"], "index": ex["index"], "status": ex["status"],
                                         "events": ex["events"], "trace": ex.get("trace"),
-                                        "replays": int(ex.get("replays", 0))}
+                                        "replays": int(ex.get("replays", 0)),
+                                        "motion_seconds": executions.duration(ex)}
                 else:
                     out["execution"] = {"kind": kind, "index": index, "status": "not_started",
                                         "events": None, "trace": None}
@@ -198,6 +200,7 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
     position = sequence.index(participant.task_index) if participant.task_index in sequence else 0
     out["progress"] = progress(configs, participant.stage, position, out["step"],
                                speed=study.robot_speed, questionnaire=bool(study.questionnaire))
+    extend_state(out, s, participant, study)  # issue 21's hook: the participant page's extras (page_state.py)
     return out
 
 

@@ -15,6 +15,7 @@ from ..db import repository as repo
 from ..db.tables import StudyRow
 from ..errors import Conflict, InvalidFields, InvalidInput, NotFound
 from .context import Context, commit, iso
+from .page_settings import check_page_settings, page_settings_view
 
 TASK_FORMULAS = DINNER_TASK_FORMULAS
 
@@ -266,6 +267,7 @@ def _study_values(spec: dict[str, Any], problems: _Problems | None = None) -> di
         "quiz_max_attempts": attempts,
         "timeout_minutes": timeout,
         "robot_speed": float(speed) if isinstance(speed, (int, float)) else 1.0,
+        **check_page_settings(spec, problems),
         "status": "draft",
     }
     problems.raise_if_any()
@@ -293,7 +295,7 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "completion_url": study.completion_url, "completion_code": study.completion_code,
         "screened_out_code": study.screened_out_code, "task_order": study.task_order, "quiz": study.quiz,
         "quiz_max_attempts": study.quiz_max_attempts, "timeout_minutes": study.timeout_minutes,
-        "robot_speed": study.robot_speed,
+        "robot_speed": study.robot_speed, **page_settings_view(study),
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }
 
@@ -391,6 +393,7 @@ def seed_demo_study(ctx: Context) -> dict[str, Any]:
         "conditions": ["active"],
         "questionnaire": DEMO_QUESTIONNAIRE,
         "pilot": True,
+        "allow_anonymous": True,  # the demo is for trying the page: its link needs no Prolific ID
     }
     try:
         create_study(ctx, spec, study_id=DEMO_STUDY_ID)

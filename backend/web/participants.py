@@ -87,7 +87,7 @@ async def execute(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None,
 async def assess(body: AssessmentIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
     """Judge the robot's finished execution acceptable or not."""
     return await run_in_threadpool(services.assess_execution, ctx, token, acceptable=body.acceptable,
-                                   expect=_expect(body), key=key)
+                                   expect=_expect(body), key=key, shown_fraction=body.shown_fraction)
 
 
 @router.post("/me/questionnaire", response_model=ParticipantState)

@@ -9,6 +9,7 @@ from pydantic import BaseModel, ConfigDict, Field
 from ..core.domain import DINNER_OBJECTS
 from ..core.priors import NAMED_PRIORS
 from ..core.puns import CRITERIA
+from .page_schemas import ConsentFormIn
 
 Id = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
 ObjectName = Literal[DINNER_OBJECTS]  # type: ignore[valid-type]
@@ -40,6 +41,8 @@ class PlacementIn(StepGuard):
 
 class AssessmentIn(StepGuard):
     acceptable: bool | None = Field(description="required for queries; optional for test executions")
+    shown_fraction: float | None = Field(None, ge=0, le=1, description="how much of the robot's recorded motion "
+                                         "the page played before the verdict (1: to the end; empty: unknown)")
 
 
 class QuestionnaireIn(Strict):
@@ -137,6 +140,11 @@ class StudyIn(Strict):
     timeout_minutes: int | None = Field(None, ge=1, le=1440)
     robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
                                "than real time (recordings keep real time)")
+    # The participant page's settings (services/page_settings.py).
+    consent_form: ConsentFormIn | None = None
+    allow_anonymous: bool = Field(False, description="a study link without PROLIFIC_PID may join without an id "
+                                  "(otherwise the page asks for the Prolific ID)")
+    quiz_feedback: bool = Field(True, description="a failed comprehension quiz names the questions answered wrongly")
 
 
 STUDY_FIELDS = tuple(StudyIn.model_fields)
@@ -167,6 +175,9 @@ class StudyOut(BaseModel):
     quiz_max_attempts: int
     timeout_minutes: int | None
     robot_speed: float = 1.0
+    consent_form: dict[str, str] = Field(default_factory=dict)
+    allow_anonymous: bool = False
+    quiz_feedback: bool = True
     created_at: str | None
     updated_at: str | None
 

@@ -1,0 +1,92 @@
+"""The participant page's study settings and records (issue 21): the structured consent form, the quiz's
+feedback, how much of the robot's attempt was shown before a verdict, through the in-process app."""
+
+from __future__ import annotations
+
+import csv
+import io
+
+from .helpers import EXP, bearer, demonstrate, join, make_study, to_teaching
+
+CONSENT_FORM = {"researcher": "A. Researcher", "institution": "Example University", "contact": "lab@example.org",
+                "ethics_approval": "Example University ethics board, ref. 2026-042", "duration": "About 15 minutes",
+                "payment": "GBP 2.50 through Prolific", "retention": "Kept for five years, then deleted."}
+QUIZ = [{"id": "who", "text": "Who places the objects?", "options": ["I do", "The robot"], "correct": 1},
+        {"id": "order", "text": "Can the order matter?", "options": ["Yes", "No"], "correct": 0}]
+
+
+def test_the_consent_form_is_shown_in_sections_and_its_digest_is_recorded_with_the_consent(app_client) -> None:
+    study_id = make_study(app_client, consent_form=CONSENT_FORM, consent_version="2026-12-v3")
+    spec = app_client.get(f"/api/v1/studies/{study_id}", headers=EXP).json()
+    assert spec["consent_form"] == CONSENT_FORM and spec["allow_anonymous"] is False
+    token, state = join(app_client, study_id)
+    sections = {s["key"]: s for s in state["consent"]["sections"]}
+    assert [s["key"] for s in state["consent"]["sections"]] == [
+        "researcher", "institution", "contact", "ethics_approval", "duration", "payment", "recorded", "retention",
+        "withdrawal"]
+    assert sections["ethics_approval"]["text"] == CONSENT_FORM["ethics_approval"]
+    assert "Withdraw" in sections["withdrawal"]["text"] and "Prolific ID" in sections["recorded"]["text"]
+    assert app_client.post("/api/v1/me/consent", json={"agree": True, "consent_version": "2026-12-v3"},
+                           headers=bearer(token)).status_code == 200
+    events = list(csv.DictReader(io.StringIO(app_client.get(
+        f"/api/v1/studies/{study_id}/exports/events.csv?include_pilot=true", headers=EXP).text)))
+    consent = next(e for e in events if e["kind"] == "consent")
+    assert '"consent_version":"2026-12-v3"' in consent["payload"] and '"consent_digest":"' in consent["payload"]
+    rows = list(csv.DictReader(io.StringIO(app_client.get(
+        f"/api/v1/studies/{study_id}/exports/participants.csv?include_pilot=true", headers=EXP).text)))
+    assert rows[0]["consent_version"] == "2026-12-v3"
+
+
+def test_a_bad_consent_form_field_is_refused_by_name(app_client) -> None:
+    from tests.web.conftest import study_spec
+
+    bad = study_spec(["active"], consent_form={"researcher": "x" * 201, "ethics": "ref 1"}, quiz_feedback="yes")
+    r = app_client.post("/api/v1/studies", json=bad, headers=EXP)
+    assert r.status_code == 422
+    fields = {e["field"] for e in r.json()["errors"]}
+    assert {"consent_form.researcher", "consent_form.ethics", "quiz_feedback"} <= fields
+
+
+def _quiz_attempt(client, token: str, answers: dict[str, int]) -> dict:
+    r = client.post("/api/v1/me/quiz", json={"answers": answers}, headers=bearer(token))
+    assert r.status_code == 200, r.text
+    return r.json()
+
+
+def _to_quiz(client, study_id: str) -> tuple[str, dict]:
+    token, state = join(client, study_id)
+    client.post("/api/v1/me/consent", json={"agree": True, "consent_version": state["consent"]["version"]},
+                headers=bearer(token))
+    return token, client.post("/api/v1/me/instructions", headers=bearer(token)).json()
+
+
+def test_a_failed_quiz_keeps_the_answers_and_names_the_wrong_ones_unless_the_study_hides_them(app_client) -> None:
+    shown = make_study(app_client, quiz=QUIZ, quiz_max_attempts=3)
+    token, state = _to_quiz(app_client, shown)
+    assert state["quiz"]["answers"] == {} and state["quiz"]["wrong"] is None
+    after = _quiz_attempt(app_client, token, {"who": 0, "order": 0})["quiz"]
+    assert after["answers"] == {"who": 0, "order": 0} and after["wrong"] == ["who"] and after["attempts_left"] == 2
+
+    hidden = make_study(app_client, quiz=QUIZ, quiz_max_attempts=3, quiz_feedback=False)
+    token, _ = _to_quiz(app_client, hidden)
+    after = _quiz_attempt(app_client, token, {"who": 1, "order": 1})["quiz"]
+    assert after["answers"] == {"who": 1, "order": 1} and after["wrong"] is None
+
+
+def test_the_verdict_records_how_much_of_the_attempt_was_shown_in_the_events_and_steps(app_client) -> None:
+    study_id = make_study(app_client, n_practice=0, n_demonstrations=1, n_queries=1, n_tests=1)
+    token, _ = to_teaching(app_client, study_id)
+    demonstrate(app_client, token, ["dinner_plate", "small_plate", "bowl"])
+    h = bearer(token)
+    for shown in (0.5, None):
+        app_client.post("/api/v1/me/execution", headers=h)
+        state = app_client.get("/api/v1/me", headers=h).json()
+        assert state["execution"]["status"] == "finished" and "motion_seconds" in state["execution"]
+        body = {"acceptable": True} if shown is None else {"acceptable": False, "shown_fraction": shown}
+        assert app_client.post("/api/v1/me/assessment", json=body, headers=h).status_code == 200
+    r = app_client.post("/api/v1/me/assessment", json={"acceptable": True, "shown_fraction": 1.5}, headers=h)
+    assert r.status_code == 422 and "shown_fraction" in r.text
+    steps = list(csv.DictReader(io.StringIO(app_client.get(
+        f"/api/v1/studies/{study_id}/exports/steps.csv?include_pilot=true", headers=EXP).text)))
+    assert [(s["step_kind"], s["shown_fraction"], s["replays_watched"]) for s in steps] == [
+        ("demonstration", "", ""), ("query", "0.5", "0"), ("test", "", "0")]
