@@ -75,6 +75,11 @@ export class ParticipantApi {
   replay(guard) { return this.act("/me/execution/replay", guard); }
   answerQuestionnaire(answers) { return this.act("/me/questionnaire", { answers }); }
 
+  /** Attention telemetry or presence (kind: tab_hidden, window_blur, paste, still_here); never retried. */
+  signal(kind, field = null) {
+    return this.request("POST", "/me/signals", field ? { kind, field } : { kind }, { retries: 0 });
+  }
+
   /** Prepare the 3D view for the current step: {available, url}. */
   openView() { return this.request("POST", "/me/view", undefined, { retries: 1 }); }
   robot() { return this.request("GET", "/me/robot", undefined, { retries: 0 }); }

@@ -4,7 +4,7 @@
 // Functions from (state, handlers) to DOM nodes; participant.js owns the state and the calls.
 
 import { h } from "./dom.js";
-import { instructionsBody } from "./participant-views.js";
+import { codeBlock, instructionsBody } from "./participant-views.js";
 
 const REASONS = {
   declined_consent: ["You chose not to take part", "Nothing more will be recorded."],
@@ -87,21 +87,35 @@ export function quizView(state, { onQuiz, pending }) {
 }
 
 /** The page after leaving early: why, and the way back to Prolific when the study set one (counting down from
- * `secondsLeft`, as on the done page; null: no countdown). */
-export function endedView(state, { secondsLeft }) {
+ * `secondsLeft`, as on the done page; null: no countdown). After withdrawing, a link back to the study platform. */
+export function endedView(state, { secondsLeft, onCopy }) {
   const completion = state.completion ?? {};
   const [title, text] = REASONS[completion.reason] ?? REASONS.declined_consent;
   const url = completion.redirect_url;
+  const back = completion.return_url;
   return h("section", { class: "card narrow", id: "ended" },
     heading(title),
     h("p", {}, text),
-    completion.code ? h("p", {}, "Your code: ", h("span", { class: "code", id: "completion-code" }, completion.code)) : null,
+    completion.code ? h("p", {}, "Your code:") : null,
+    completion.code ? codeBlock(completion.code, onCopy) : null,
     url ? h("p", {}, secondsLeft === null
       ? "You can go back to the study platform now. "
       : h("span", { class: "countdown", id: "countdown", "aria-live": "polite" },
         `You will be taken back in ${secondsLeft} second${secondsLeft === 1 ? "" : "s"}. `),
     h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
-      : h("p", {}, "You can close this page now."));
+      : back ? h("p", {}, h("a", { href: back, id: "return-link", class: "button primary" }, "Go back to the study platform"))
+        : h("p", {}, "You can close this page now."));
+}
+
+/** The "are you still there?" dialog before an idle time-out; `onStay` answers it. */
+export function idleDialog(onStay) {
+  const dialog = h("dialog", { id: "idle-dialog", "aria-labelledby": "idle-title" },
+    h("h2", { id: "idle-title" }, "Are you still there?"),
+    h("p", {}, "Nothing has happened for a while. This session ends in ", h("strong", { id: "idle-seconds" }, ""),
+      " unless you say you are still here."),
+    h("div", { class: "buttons" }, h("button", { class: "primary", id: "still-here", onclick: onStay }, "I am still here")));
+  document.body.append(dialog);
+  return dialog;
 }
 
 /** Whether the page offers withdrawal now: after consent, until the participant has left. */

@@ -42,6 +42,9 @@ function printButton() {
 export function consentView(state, { onAgree, onDecline }) {
   return h("section", { class: "card narrow consent" },
     heading("About this study"),
+    state.consent.anonymous && state.consent.allow_anonymous
+      ? h("p", { class: "notice", id: "anonymous-note" }, "You are taking part without a Prolific ID: nothing links "
+        + "your answers to an account, and no payment can be made through Prolific for this session.") : null,
     consentSheet(state),
     h("div", { class: "buttons no-print" }, printButton()),
     h("p", { class: "question no-print" }, "Do you agree to take part?"),
@@ -85,13 +88,14 @@ export function goalFigure(task, assetUrl) {
 
 export function taskIntroView(state, { onBegin, assetUrl }) {
   const task = state.task;
+  // The goal picture comes before the button on every screen: on a phone the two stack in this order.
   return h("section", { class: "card intro" },
     h("p", { class: "eyebrow" }, `Task ${(task.position ?? task.index) + 1} of ${task.total}`),
     heading(task.name),
     h("div", { class: "intro-body" },
-      h("div", {}, h("p", { class: "instructions" }, task.instructions),
-        h("div", { class: "buttons" }, h("button", { class: "primary", onclick: onBegin }, "Begin this task"))),
-      goalFigure(task, assetUrl)));
+      h("p", { class: "instructions" }, task.instructions),
+      goalFigure(task, assetUrl),
+      h("div", { class: "buttons intro-start" }, h("button", { class: "primary", onclick: onBegin }, "Begin this task"))));
 }
 
 /** The study-wide progress line: "Step 5 of 14 · about 12 minutes left". */
@@ -155,7 +159,7 @@ function demonstrationPanel(state, live, { onPlace, onFinish, onConfirmFinish, o
     statusLine(status, moving),
     h("p", { class: "placed" }, h("strong", {}, "On Table B: "), list(placed)),
     waiting.length ? h("div", { class: "object-buttons" },
-      h("p", { class: "hint" }, "Or choose with the keyboard:"),
+      h("p", { class: "hint" }, "Or choose from this list:"),
       waiting.map((obj) => h("button", { class: "object", "data-object": obj, disabled: moving,
         onclick: () => onPlace(obj) }, pretty(obj)))) : null,
     confirming && !moving
@@ -238,12 +242,13 @@ function likertItem(item, index) {
         h("span", {}, label)))));
 }
 
-export function questionnaireView(state, { onSubmit, pending }) {
+export function questionnaireView(state, { onSubmit, onPaste, pending }) {
   const items = state.questionnaire || [];
   const form = h("form", { class: "questionnaire", novalidate: true },
     items.map((item, i) => item.kind === "text"
       ? h("fieldset", { class: "item text" }, h("legend", {}, `${i + 1}. ${item.text}`, item.required ? "" : " (optional)"),
-        h("textarea", { name: `q-${item.id}`, rows: "3", maxlength: "5000" }))
+        h("textarea", { name: `q-${item.id}`, rows: "3", maxlength: "5000", "aria-label": item.text,
+          onpaste: () => onPaste?.(item.id) }))
       : likertItem(item, i)),
     h("p", { class: "error", id: "form-error", role: "alert" }),
     h("div", { class: "buttons" }, h("button", { class: "primary", type: "submit", disabled: pending }, "Submit answers")));
@@ -272,13 +277,21 @@ export function questionnaireView(state, { onSubmit, pending }) {
     form);
 }
 
+/** The completion code with a button that copies it (`onCopy(code)`), and a line for what the copy did. */
+export function codeBlock(code, onCopy) {
+  return h("div", { class: "code-block" },
+    h("p", { class: "code", id: "completion-code" }, code),
+    h("button", { type: "button", id: "copy-code", onclick: () => onCopy(code) }, "Copy the code"),
+    h("span", { id: "copy-note", class: "hint", role: "status" }));
+}
+
 /** The last page: the completion code, what the robot learned in plain words, and the way back (counting down). */
-export function doneView(state, { secondsLeft }) {
+export function doneView(state, { secondsLeft, onCopy }) {
   const { code, redirect_url: url, learned } = state.completion;
   return h("section", { class: "card narrow" },
     heading("Thank you!"),
     h("p", {}, "You have finished the study. Your completion code is:"),
-    h("p", { class: "code", id: "completion-code" }, code),
+    codeBlock(code, onCopy),
     learned?.length ? h("div", { class: "summary" }, h("p", {}, "What the robot learned from you:"),
       h("ul", {}, learned.map((t) => h("li", {}, h("strong", {}, `Task ${t.task_index + 1}: `),
         t.summary || `${t.map_description}.`)))) : null,
@@ -287,7 +300,17 @@ export function doneView(state, { secondsLeft }) {
       : h("span", { class: "countdown", id: "countdown", "aria-live": "polite" },
         `You will be taken back in ${secondsLeft} second${secondsLeft === 1 ? "" : "s"}. `),
     h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
-      : h("p", {}, "You can close this page now."));
+      : h("p", {}, "You can close this page now."),
+    consentCopy(state));
+}
+
+/** The information sheet agreed to, to read again or print, at the end. */
+export function consentCopy(state) {
+  if (!state.consent?.given_at) return null;
+  return h("details", { class: "reminder consent-copy", id: "consent-copy" },
+    h("summary", {}, "The study information you agreed to (to print or keep)"),
+    consentSheet(state),
+    h("div", { class: "buttons no-print" }, printButton()));
 }
 
 export function withdrawnView() {

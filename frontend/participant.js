@@ -14,7 +14,9 @@ const HEARTBEAT_MS = 5000;
 const VIEWER_STALL_MS = 8000; // no 3D view connected for this long while one is shown: reload it
 const REDIRECT_SECONDS = 8;
 const PLAYBACK_POLL_MS = 250; // how often the page reads how far the 3D view has played the robot's attempt
-const NO_PLAYER_GRACE_MS = 15000; // finished, yet no player to read for this long: the answer is not held back
+const NO_PLAYER_GRACE_MS = 15000;
+const IDLE_WARNING_SECONDS = 60; // "are you still there?" this long before the idle time-out
+const UNDER_WAY = ["consent", "instructions", "quiz", "task", "questionnaire"]; // finished, yet no player to read for this long: the answer is not held back
 
 const api = new ParticipantApi(tokenFromLocation());
 const tabId = randomId(12); // per page load: a reload frees the old lease on pagehide
@@ -47,6 +49,7 @@ let eventsOpen = false;
 let refreshing = null; // the refresh under way; a change notice meanwhile asks for one more
 let refreshAgain = false;
 // How much of the robot's attempt the 3D view has played (per step: task, kind, index): the answer waits for it.
+let idleReadAt = Date.now(); // when state.idle was read
 let shown = { step: null, playing: false, fraction: null, complete: true, unreadSince: null };
 
 function showBanner(text) {
@@ -67,7 +70,7 @@ function guard() {
 }
 
 function setState(next, robot = null) {
-  if (next) state = next;
+  if (next) { state = next; idleReadAt = Date.now(); }
   if (robot) live = robot;
   render();
 }
@@ -132,6 +135,8 @@ const handlers = {
   onSubmit: (answers) => act(() => api.answerQuestionnaire(answers)),
   onQuiz: (answers) => act(() => api.act("/me/quiz", { answers })),
   onWithdraw: () => act(() => api.act("/me/withdraw", undefined)),
+  onPaste: (field) => sendSignal("paste", field),
+  onCopy: (code) => copyCode(code),
   onTakeOver: async () => {
     try {
       if (await claim(true)) await refresh();
@@ -187,8 +192,8 @@ function render(force = false) {
     case "instructions": showScreen(views.instructionsView(state, withPending)); break;
     case "questionnaire": showScreen(views.questionnaireView(state, withPending)); break;
     case "quiz": showScreen(ops.quizView(state, withPending)); break;
-    case "withdrawn": case "screened_out": leaveScreen((secondsLeft) => ops.endedView(state, { secondsLeft })); break;
-    case "done": leaveScreen((secondsLeft) => views.doneView(state, { secondsLeft })); break;
+    case "withdrawn": case "screened_out": leaveScreen((secondsLeft) => ops.endedView(state, { secondsLeft, onCopy: handlers.onCopy })); break;
+    case "done": leaveScreen((secondsLeft) => views.doneView(state, { secondsLeft, onCopy: handlers.onCopy })); break;
     case "task":
       if (intro) { showScreen(views.taskIntroView(state, withPending)); break; }
       renderTask(withPending, moved);
@@ -275,6 +280,47 @@ function watchViewer() {
   } else if (Date.now() - viewer.noWatcherSince > VIEWER_STALL_MS) {
     loadFrame(); // the view's connection was lost (server restart, network): connect again
   }
+}
+
+/** Send one attention signal while the study is under way; a lost one is not worth a retry or a banner. */
+function sendSignal(kind, field = null) {
+  if (!state || !UNDER_WAY.includes(state.stage) || blocked) return;
+  api.signal(kind, field).catch(() => {});
+}
+
+/** Copy the completion code; without the Clipboard API (an insecure page), select it so the participant can copy. */
+async function copyCode(code) {
+  const note = document.getElementById("copy-note");
+  try {
+    await navigator.clipboard.writeText(code);
+    if (note) note.textContent = "Copied.";
+  } catch {
+    const node = document.getElementById("completion-code");
+    if (node) window.getSelection()?.selectAllChildren(node);
+    if (note) note.textContent = "Selected: press Ctrl+C (or Cmd+C) to copy it.";
+  }
+}
+
+/** "Are you still there?" a minute before the study's idle time-out (state.idle: its length and the idle time). */
+function watchIdle() {
+  const idle = state && UNDER_WAY.includes(state.stage) && !blocked ? state.idle : null;
+  const dialog = document.getElementById("idle-dialog");
+  if (!idle) { dialog?.close(); return; }
+  const left = idle.timeout_seconds - idle.idle_seconds - (Date.now() - idleReadAt) / 1000;
+  if (left > IDLE_WARNING_SECONDS) { if (dialog?.open) dialog.close(); return; }
+  const box = dialog ?? ops.idleDialog(async () => {
+    box.close();
+    try { await api.signal("still_here"); await refreshState(); } catch (error) { handleError(error); }
+  });
+  const seconds = Math.max(0, Math.ceil(left));
+  box.querySelector("#idle-seconds").textContent = `${seconds} second${seconds === 1 ? "" : "s"}`;
+  if (!box.open) { box.showModal ? box.showModal() : box.setAttribute("open", ""); }
+  if (left <= 0) refreshState().catch(() => {}); // the server then says the session has ended
+}
+
+async function refreshState() {
+  setState(await api.state());
+  idleReadAt = Date.now();
 }
 
 /** The seconds the 3D view's player has played of the recorded attempt (viser's hidden playback slider), or null. */
@@ -418,6 +464,12 @@ async function tick() {
 }
 
 setInterval(watchPlayback, PLAYBACK_POLL_MS);
+setInterval(watchIdle, 1000);
+document.addEventListener("visibilitychange", () => { if (document.visibilityState === "hidden") sendSignal("tab_hidden"); });
+// Focus moving into the 3D view's frame blurs the window too: only a window left while the tab stays visible counts.
+window.addEventListener("blur", () => setTimeout(() => {
+  if (!document.hasFocus() && document.visibilityState === "visible") sendSignal("window_blur");
+}, 0));
 window.addEventListener("pagehide", () => { if (!finished()) api.releaseTab(tabId); });
 window.addEventListener("beforeunload", warnBeforeLeaving);
 

@@ -1,4 +1,4 @@
-"""participant page: a study's structured consent form, links without a PROLIFIC_PID, quiz feedback
+"""participant page: a study's structured consent form, links without a PROLIFIC_PID, quiz feedback, attention telemetry
 
 Revision ID: 0005_participant_page
 Revises: 0004_participant_ux
@@ -24,10 +24,14 @@ def upgrade() -> None:
         batch_op.add_column(sa.Column('consent_form', sa.JSON(), server_default='{}', nullable=False))
         batch_op.add_column(sa.Column('allow_anonymous', sa.Boolean(), server_default=sa.false(), nullable=False))
         batch_op.add_column(sa.Column('quiz_feedback', sa.Boolean(), server_default=sa.true(), nullable=False))
+    with op.batch_alter_table('participants', schema=None) as batch_op:
+        batch_op.add_column(sa.Column('attention_signals', sa.JSON(), server_default='{}', nullable=False))
 
 
 def downgrade() -> None:
     """Revert this migration."""
+    with op.batch_alter_table('participants', schema=None) as batch_op:
+        batch_op.drop_column('attention_signals')
     with op.batch_alter_table('studies', schema=None) as batch_op:
         batch_op.drop_column('quiz_feedback')
         batch_op.drop_column('allow_anonymous')

@@ -102,6 +102,8 @@ class ParticipantRow(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     last_activity_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    # Attention telemetry from the page (services/attention.py): {"tab_hidden": n, "window_blur": n, "paste": n}.
+    attention_signals: Mapped[dict[str, int]] = mapped_column(JSON, default=dict, server_default="{}")
     n_events: Mapped[int] = mapped_column(Integer, default=0)
     task_order: Mapped[list[int] | None] = mapped_column(JSON, nullable=True)  # study task indices; None: as listed
     quiz_failures: Mapped[int] = mapped_column(Integer, default=0, server_default="0")

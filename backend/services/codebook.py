@@ -59,6 +59,10 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "total_seconds": ("number", "time from joining to finishing (empty unless done)", "seconds"),
         "n_events": ("integer", "events recorded for the participant", "count"),
         "seed": ("integer", "the participant's session seed (task i uses seed + i)", ""),
+        "tab_hidden": ("integer", "times the study's tab was hidden (another tab or app shown; Page Visibility API) "
+                       "while the study was under way", "count"),
+        "window_blur": ("integer", "times the study's window lost the focus while the study was under way", "count"),
+        "paste": ("integer", "times text was pasted into a questionnaire answer", "count"),
     },
     "events": {
         "seq": ("integer", "the event's number in the participant's log, from 1", ""),
@@ -66,7 +70,8 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
                  "participant chose an object), placed (the robot reported the table after placing it), "
                  "demonstration, execution_started, execution_finished, replay_watched (the participant watched "
                  "the robot's finished execution again), assessment, task_finished, questionnaire, completed, "
-                 "withdrawn, screened_out"),
+                 "withdrawn, screened_out; from the page: tab_hidden, window_blur, paste (attention telemetry) "
+                 "and still_here (answered \"are you still there?\")"),
         "object": ("category", "the object placed (place and placed events)",
                    "dinner_plate, small_plate, bowl, knife, fork"),
         "labels": ("json", "the objects in their places on the table after a placement, as the robot reported them "

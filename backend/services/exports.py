@@ -12,6 +12,7 @@ from ..db import repository as repo
 from ..db.tables import StudyRow
 from ..errors import NotFound
 from .context import Context, aware, iso
+from .attention import SIGNALS
 from .lifecycle import expire_timeouts
 from .monitoring import belief_view
 from .planning import session_of
@@ -25,7 +26,7 @@ PARTICIPANT_COLUMNS = [
     "participant_id", "study_id", "condition", "task_order", "pilot", "stage", "end_reason", "timed_out",
     "quiz_failures", "attention_failed", "task_index", "prolific_pid", "external_study_id",
     "external_session_id", "consent_at", "consent_version", "completion_code", "created_at", "last_activity_at",
-    "finished_at", "total_seconds", "n_events", "seed",
+    "finished_at", "total_seconds", "n_events", "seed", "tab_hidden", "window_blur", "paste",
 ]
 
 
@@ -90,7 +91,7 @@ def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) ->
                        p.task_index, p.prolific_pid, p.external_study_id, p.external_session_id, iso(p.consent_at),
                        p.consent_version, p.completion_code, iso(p.created_at), iso(p.last_activity_at),
                        iso(p.finished_at), _seconds(p.created_at, p.finished_at) if p.stage == "done" else None,
-                       p.n_events, p.seed]
+                       p.n_events, p.seed, *((p.attention_signals or {}).get(k, 0) for k in SIGNALS)]
         elif name == "steps":
             yield from _step_rows(s, study, include_pilot)
         elif name == "events":

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 from typing import Any
+from urllib.parse import urlsplit
 
 from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow, utcnow
@@ -20,6 +21,26 @@ def extend_state(out: dict[str, Any], s: Any, participant: ParticipantRow, study
     if out.get("quiz") is not None:
         out["quiz"].update(_last_quiz(s, participant, study))
     _calibrated_progress(out, s, participant, study)
+    out["idle"] = _idle(participant, study)
+    if out.get("completion") is not None and participant.stage == "withdrawn":
+        out["completion"]["return_url"] = _platform(study.completion_url)
+    out["consent"]["anonymous"] = participant.prolific_pid is None
+
+
+def _idle(participant: ParticipantRow, study: StudyRow) -> dict[str, Any] | None:
+    """The study's idle time-out and how long the participant has been idle (the page warns a minute before)."""
+    if not study.timeout_minutes or participant.stage not in UNDER_WAY:
+        return None
+    last = aware(participant.last_activity_at) or utcnow()
+    return {"timeout_seconds": study.timeout_minutes * 60, "idle_seconds": round((utcnow() - last).total_seconds(), 1)}
+
+
+def _platform(completion_url: str | None) -> str | None:
+    """The study platform's address (the completion redirect's origin): where a withdrawn participant goes back to."""
+    if not completion_url:
+        return None
+    parts = urlsplit(completion_url)
+    return f"{parts.scheme}://{parts.netloc}/" if parts.scheme in ("http", "https") and parts.netloc else None
 
 
 def _last_quiz(s: Any, participant: ParticipantRow, study: StudyRow) -> dict[str, Any]:

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Literal
+
 from pydantic import BaseModel, ConfigDict, Field
 
 
@@ -20,3 +22,13 @@ class ConsentFormIn(BaseModel):
     recorded: str | None = Field(None, max_length=2000, description="what is recorded")
     retention: str | None = Field(None, max_length=1000, description="how long the data are kept, and where")
     withdrawal: str | None = Field(None, max_length=1000, description="the right to withdraw")
+
+
+class SignalIn(BaseModel):
+    """One signal of the participant page: attention telemetry, or presence before an idle time-out."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+    kind: Literal["tab_hidden", "window_blur", "paste", "still_here"]
+    field: str | None = Field(None, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$",
+                              description="paste: the questionnaire item pasted into")

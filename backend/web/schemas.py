@@ -78,7 +78,10 @@ class ParticipantState(BaseModel):
         description="at the end: code, redirect_url (the study's completion URL with the code), reason for leaving "
                     "early (declined_consent, withdrew, comprehension, timeout) and the debriefing")
     quiz: dict[str, Any] | None = Field(None, description="at the quiz stage: items, failed_attempts, attempts_left")
-    progress: dict[str, Any] | None = Field(None, description="{done, total, minutes_left}: steps of the whole study")
+    progress: dict[str, Any] | None = Field(None, description="{done, total, minutes_left, seconds_left}: steps of "
+                                            "the whole study and the calibrated time left")
+    idle: dict[str, Any] | None = Field(None, description="with a study time-out: {timeout_seconds, idle_seconds} "
+                                        "(the page asks \"are you still there?\" a minute before)")
     replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
 
 
@@ -195,6 +198,8 @@ class ParticipantBaseOut(BaseModel):
     attention_failed: bool = False
     task_order: list[int] | None = None
     elapsed_seconds: float | None = Field(None, description="from joining to finishing, or to now if under way")
+    attention_signals: dict[str, int] = Field(default_factory=dict, description="the page's attention telemetry: "
+                                              "tab_hidden, window_blur, paste counts")
     prolific_pid: str | None
     created_at: str | None
     last_activity_at: str | None

@@ -90,3 +90,54 @@ def test_the_verdict_records_how_much_of_the_attempt_was_shown_in_the_events_and
         f"/api/v1/studies/{study_id}/exports/steps.csv?include_pilot=true", headers=EXP).text)))
     assert [(s["step_kind"], s["shown_fraction"], s["replays_watched"]) for s in steps] == [
         ("demonstration", "", ""), ("query", "0.5", "0"), ("test", "", "0")]
+
+
+def test_a_link_without_a_prolific_id_asks_for_it_unless_the_study_allows_anonymous_participants(app_client) -> None:
+    study_id = make_study(app_client)
+    asked = app_client.get(f"/study/{study_id}/join?STUDY_ID=s1&SESSION_ID=x1", follow_redirects=False)
+    assert asked.status_code == 200 and asked.headers["content-type"].startswith("text/html")
+    assert 'name="PROLIFIC_PID"' in asked.text and 'name="SESSION_ID" value="x1"' in asked.text
+    joined = app_client.get(f"/study/{study_id}/join?PROLIFIC_PID=p77&STUDY_ID=s1&SESSION_ID=x1",
+                            follow_redirects=False)
+    assert joined.status_code == 303 and joined.headers["location"].startswith("/p/")
+
+    open_to_all = make_study(app_client, allow_anonymous=True)
+    anonymous = app_client.get(f"/study/{open_to_all}/join", follow_redirects=False)
+    assert anonymous.status_code == 303
+    token = anonymous.headers["location"].rsplit("/", 1)[-1]
+    consent = app_client.get("/api/v1/me", headers=bearer(token)).json()["consent"]
+    assert consent["anonymous"] is True and consent["allow_anonymous"] is True
+
+
+def test_attention_signals_are_events_counted_per_participant_and_do_not_postpone_a_time_out(app_client) -> None:
+    study_id = make_study(app_client, timeout_minutes=30)
+    token, _ = to_teaching(app_client, study_id)
+    h = bearer(token)
+    before = app_client.get("/api/v1/me", headers=h).json()["idle"]
+    assert before["timeout_seconds"] == 1800 and before["idle_seconds"] >= 0
+    for kind in ("tab_hidden", "tab_hidden", "window_blur", "paste"):
+        assert app_client.post("/api/v1/me/signals", json={"kind": kind}, headers=h).status_code == 204
+    assert app_client.post("/api/v1/me/signals", json={"kind": "sneeze"}, headers=h).status_code == 422
+    rows = list(csv.DictReader(io.StringIO(app_client.get(
+        f"/api/v1/studies/{study_id}/exports/participants.csv?include_pilot=true", headers=EXP).text)))
+    assert (rows[0]["tab_hidden"], rows[0]["window_blur"], rows[0]["paste"]) == ("2", "1", "1")
+    listed = app_client.get(f"/api/v1/studies/{study_id}/participants", headers=EXP).json()
+    assert listed[0]["attention_signals"] == {"tab_hidden": 2, "window_blur": 1, "paste": 1}
+    from tableteach.db.tables import ParticipantRow
+
+    ctx = app_client.app.state.context
+    with ctx.db.read() as s:
+        idle_since = s.get(ParticipantRow, listed[0]["participant_id"]).last_activity_at
+    assert app_client.post("/api/v1/me/signals", json={"kind": "window_blur"}, headers=h).status_code == 204
+    with ctx.db.read() as s:
+        assert s.get(ParticipantRow, listed[0]["participant_id"]).last_activity_at == idle_since
+    assert app_client.post("/api/v1/me/signals", json={"kind": "still_here"}, headers=h).status_code == 204
+    with ctx.db.read() as s:
+        assert s.get(ParticipantRow, listed[0]["participant_id"]).last_activity_at > idle_since
+
+
+def test_a_withdrawn_participant_is_given_the_way_back_to_the_platform(app_client) -> None:
+    study_id = make_study(app_client, completion_url="https://app.example.org/submissions/complete?cc={code}")
+    token, _ = to_teaching(app_client, study_id)
+    state = app_client.post("/api/v1/me/withdraw", headers=bearer(token)).json()
+    assert state["stage"] == "withdrawn" and state["completion"]["return_url"] == "https://app.example.org/"
