@@ -9,6 +9,7 @@ from typing import Any
 
 from .context import Context
 from .exports import EXPORT_COLUMNS, EXPORTS, export_rows
+from .instruments import INSTRUMENT_KINDS, INSTRUMENTS
 from .studies import get_study
 
 CODEBOOK_COLUMNS = ["file", "column", "type", "meaning", "units_or_levels", "likert_labels"]
@@ -120,19 +121,46 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "attention_passed": ("boolean", "the answer was the expected one (empty for other items)", BOOL),
         "answered_at": ("datetime", "when the questionnaire was submitted", TIME),
     },
+    "scores": {
+        "instrument": ("category", "the standard questionnaire (rows below give each one's scoring and citation)",
+                       "sus, tlx, godspeed, trust"),
+        "scale": ("category", "the score's scale", "sus; raw_tlx, mental, physical, temporal, performance, effort, "
+                  "frustration; anthropomorphism, animacy, likeability, intelligence, safety; trust, distrust"),
+        "score": ("number", "the scale's score by the instrument's published rule", "sus and tlx 0-100; godspeed "
+                  "1-5; trust 1-7"),
+        "n_items": ("integer", "items the score is made of (all answered)", "count"),
+        "answered_at": ("datetime", "when the questionnaire was submitted", TIME),
+    },
 }
 
 
 def _item_rows(questionnaire: list[dict[str, Any]]) -> Iterator[list[Any]]:
     for item in questionnaire:
         kind = item["kind"]
-        levels = {"likert5": "1-5", "rating10": "1-10", "text": "free text",
-                  "attention": f"1-5; expected {item.get('expected')}"}[kind]
-        labels = LIKERT5 if kind in ("likert5", "attention") else ("1 and 10 as the item text says"
-                                                                    if kind == "rating10" else "")
+        anchors = item.get("anchors") or ["", ""]
+        if kind in INSTRUMENT_KINDS:
+            low, high, step = INSTRUMENT_KINDS[kind]
+            levels = f"{low}-{high}" + (f" in steps of {step}" if step != 1 else "")
+            labels = f"{low} = {anchors[0]}; {high} = {anchors[1]} (only the ends are labelled)"
+        else:
+            levels = {"likert5": "1-5", "rating10": "1-10", "text": "free text",
+                      "attention": f"1-5; expected {item.get('expected')}"}[kind]
+            labels = LIKERT5 if kind in ("likert5", "attention") else ("1 and 10 as the item text says"
+                                                                        if kind == "rating10" else "")
         kind_name = "attention check" if kind == "attention" else "questionnaire item"
+        if item.get("instrument") in INSTRUMENTS:
+            kind_name = f"{INSTRUMENTS[item['instrument']].title} item {item.get('instrument_item')}"
         yield ["questionnaire.csv", f"answer where item_id = {item['id']}", "text" if kind == "text" else "integer",
                f"{kind_name}: {item['text']}", levels, labels]
+
+
+def _score_rows(questionnaire: list[dict[str, Any]]) -> Iterator[list[Any]]:
+    """One row per standard questionnaire in the study: how scores.csv scores it, and its citation."""
+    used = dict.fromkeys(item["instrument"] for item in questionnaire if item.get("instrument") in INSTRUMENTS)
+    for name in used:
+        instrument = INSTRUMENTS[name]
+        yield ["scores.csv", f"score where instrument = {name}", "number",
+               f"{instrument.title}. Scoring: {instrument.scoring} Source: {instrument.citation}", "", ""]
 
 
 def codebook_rows(ctx: Context, study_id: str) -> list[list[Any]]:
@@ -143,7 +171,7 @@ def codebook_rows(ctx: Context, study_id: str) -> list[list[Any]]:
         for column in EXPORT_COLUMNS[name]:
             kind, meaning, units = MEANINGS[name].get(column) or COMMON[column]
             rows.append([f"{name}.csv", column, kind, meaning, units, ""])
-    return rows + list(_item_rows(study["questionnaire"]))
+    return rows + list(_item_rows(study["questionnaire"])) + list(_score_rows(study["questionnaire"]))
 
 
 def export_files(ctx: Context, study_id: str, *, include_pilot: bool = False

@@ -13,13 +13,14 @@ from ..db.tables import StudyRow
 from ..errors import NotFound
 from .context import Context, aware, iso
 from .attention import SIGNALS
+from .instruments import scores
 from .lifecycle import expire_timeouts
 from .monitoring import belief_view
 from .planning import session_of
 from .state import task_sequence
 from .studies import study_row
 
-EXPORTS = ("participants", "events", "steps", "beliefs", "questionnaire")
+EXPORTS = ("participants", "events", "steps", "beliefs", "questionnaire", "scores")
 
 
 PARTICIPANT_COLUMNS = [
@@ -52,8 +53,11 @@ QUESTIONNAIRE_COLUMNS = ["participant_id", "condition", "item_id", "item_kind", 
                          "attention_check", "attention_expected", "attention_passed", "answered_at"]
 
 
+SCORE_COLUMNS = ["participant_id", "condition", "instrument", "scale", "score", "n_items", "answered_at"]
+
+
 EXPORT_COLUMNS = {"participants": PARTICIPANT_COLUMNS, "events": EVENT_COLUMNS, "steps": STEP_COLUMNS,
-                  "beliefs": BELIEF_COLUMNS, "questionnaire": QUESTIONNAIRE_COLUMNS}
+                  "beliefs": BELIEF_COLUMNS, "questionnaire": QUESTIONNAIRE_COLUMNS, "scores": SCORE_COLUMNS}
 
 
 # The event that answers each kind of step: its time minus the time the step was shown is the step's duration.
@@ -104,6 +108,12 @@ def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) ->
                        e.app_version, _json(pl)]
         elif name == "beliefs":
             yield from _belief_rows(s, study, include_pilot)
+        elif name == "scores":
+            conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study_id)}
+            for e in repo.iter_study_events(s, study_id=study_id, kind="questionnaire", include_pilot=include_pilot):
+                for instrument, scale, score, n in scores(study.questionnaire, e.payload.get("answers") or {}):
+                    yield [e.participant_id, conditions.get(e.participant_id), instrument, scale, score, n,
+                           iso(e.created_at)]
         else:
             items = {item["id"]: item for item in study.questionnaire}
             conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study_id)}

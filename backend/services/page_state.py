@@ -22,8 +22,9 @@ def extend_state(out: dict[str, Any], s: Any, participant: ParticipantRow, study
         out["quiz"].update(_last_quiz(s, participant, study))
     _calibrated_progress(out, s, participant, study)
     out["idle"] = _idle(participant, study)
-    if out.get("completion") is not None and participant.stage == "withdrawn":
-        out["completion"]["return_url"] = _platform(study.completion_url)
+    back = _platform(study.completion_url) if participant.stage == "withdrawn" else None
+    if out.get("completion") is not None and back:
+        out["completion"]["return_url"] = back  # where a withdrawn participant goes back to
     out["consent"]["anonymous"] = participant.prolific_pid is None
 
 

@@ -15,6 +15,7 @@ from ..db import repository as repo
 from ..db.tables import StudyRow
 from ..errors import Conflict, InvalidFields, InvalidInput, NotFound
 from .context import Context, commit, iso
+from .instruments import INSTRUMENT_KINDS, instrument_fields
 from .page_settings import check_page_settings, page_settings_view
 
 TASK_FORMULAS = DINNER_TASK_FORMULAS
@@ -40,7 +41,8 @@ ASSIGNMENTS = ("random", "balanced")
 STUDY_STATUSES = ("draft", "open", "closed")
 
 
-ITEM_KINDS = {"likert5": (1, 5), "rating10": (1, 10), "text": None, "attention": (1, 5)}
+ITEM_KINDS = {"likert5": (1, 5), "rating10": (1, 10), "text": None, "attention": (1, 5),
+              **{kind: (low, high) for kind, (low, high, _step) in INSTRUMENT_KINDS.items()}}
 
 
 TASK_ORDERS = ("fixed", "random", "balanced")
@@ -181,6 +183,7 @@ def _check_questionnaire(items: Any, problems: _Problems) -> list[dict[str, Any]
                  "required": True if kind == "attention" else bool(item.get("required", True))}
         if kind == "attention":
             entry["expected"] = expected
+        entry.update(instrument_fields(item, f"questionnaire.{i}", problems))  # standard questionnaires' fields
         out.append(entry)
     return out
 

@@ -12,7 +12,7 @@ from fastapi import APIRouter, FastAPI
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
-from . import analysis, dashboard, motion, viewer
+from . import analysis, dashboard, instruments, motion, viewer
 from .auth import FailureLimiter, experimenter_checker
 from .deps import require_experimenter
 from .limits import BodyLimit
@@ -62,7 +62,7 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.state.key_failures = FailureLimiter()
     errors.install(app)
     app.add_middleware(BodyLimit)
-    for module in (participants, studies, exports, analysis, dashboard, motion, viewer, pages):
+    for module in (participants, studies, exports, analysis, dashboard, motion, viewer, pages, instruments):
         app.include_router(module.router, responses=_common_errors(module.router))
     app.include_router(studies.formulas, responses=_common_errors(studies.formulas))
     return app

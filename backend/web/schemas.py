@@ -102,10 +102,15 @@ class TaskIn(Strict):
 class ItemIn(Strict):
     id: str = Field(min_length=1, max_length=64, pattern=r"^[A-Za-z0-9_\-]+$")
     text: str = Field(max_length=2000)
-    kind: Literal["likert5", "rating10", "text", "attention"]
+    kind: Literal["likert5", "rating10", "text", "attention", "anchored5", "anchored7", "tlx21"]
     required: bool = True
     expected: int | None = Field(None, ge=1, le=5,
                                  description="attention checks (shown as a 1-5 agreement scale): the expected answer")
+    anchors: list[str] | None = Field(None, min_length=2, max_length=2, description="anchored5, anchored7 and "
+                                      "tlx21 items: the labels of the low and the high end")
+    instrument: str | None = Field(None, max_length=32, description="a standard questionnaire's name "
+                                   "(GET /api/v1/instruments): its items are scored in scores.csv")
+    instrument_item: str | None = Field(None, max_length=64, description="the item's key in that questionnaire")
 
 
 class QuizItemIn(Strict):

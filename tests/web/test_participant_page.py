@@ -141,3 +141,33 @@ def test_a_withdrawn_participant_is_given_the_way_back_to_the_platform(app_clien
     token, _ = to_teaching(app_client, study_id)
     state = app_client.post("/api/v1/me/withdraw", headers=bearer(token)).json()
     assert state["stage"] == "withdrawn" and state["completion"]["return_url"] == "https://app.example.org/"
+
+
+def test_a_study_with_standard_questionnaires_exports_their_scores_and_cites_them_in_the_codebook(app_client) -> None:
+    catalogue = {i["name"]: i for i in app_client.get("/api/v1/instruments", headers=EXP).json()}
+    assert set(catalogue) == {"sus", "tlx", "godspeed", "trust"} and "Brooke" in catalogue["sus"]["citation"]
+    items = catalogue["sus"]["items"] + catalogue["tlx"]["items"]
+    study_id = make_study(app_client, n_practice=0, n_demonstrations=1, n_queries=0, n_tests=0, questionnaire=items)
+    token, _ = to_teaching(app_client, study_id)
+    state = demonstrate(app_client, token, ["dinner_plate"])
+    assert state["stage"] == "questionnaire" and state["questionnaire"][0]["anchors"] == ["Strongly disagree",
+                                                                                         "Strongly agree"]
+    answers = {f"sus{n}": 5 if n % 2 else 1 for n in range(1, 11)}
+    answers.update({i["id"]: 40 for i in catalogue["tlx"]["items"]})
+    r = app_client.post("/api/v1/me/questionnaire", json={"answers": answers}, headers=bearer(token))
+    assert r.status_code == 200, r.text
+    bad = app_client.post("/api/v1/studies", headers=EXP, json={**_spec(), "questionnaire": [
+        {**catalogue["sus"]["items"][0], "instrument_item": "sus99"}]})
+    assert bad.status_code == 422 and "questionnaire.0.instrument_item" in bad.text
+    rows = list(csv.DictReader(io.StringIO(app_client.get(
+        f"/api/v1/studies/{study_id}/exports/scores.csv?include_pilot=true", headers=EXP).text)))
+    got = {(r["instrument"], r["scale"]): float(r["score"]) for r in rows}
+    assert got[("sus", "sus")] == 100.0 and got[("tlx", "raw_tlx")] == 40.0
+    codebook = app_client.get(f"/api/v1/studies/{study_id}/exports/codebook.csv?include_pilot=true", headers=EXP).text
+    assert "Hart, S. G., & Staveland" in codebook and "score where instrument = sus" in codebook
+
+
+def _spec() -> dict:
+    from tests.web.conftest import study_spec
+
+    return study_spec(["active"])
