@@ -67,6 +67,8 @@ export const updateStudy = (id, changes) => request("PATCH", `${API}/studies/${e
 export const cloneStudy = (id) => request("POST", `${API}/studies/${enc(id)}/clone`);
 export const resetPilot = (id) => request("POST", `${API}/studies/${enc(id)}/pilot/reset`);
 export const eraseParticipant = (id, pid) => request("DELETE", `${API}/studies/${enc(id)}/participants/${enc(pid)}`);
+/** The standard questionnaires (SUS, NASA-TLX, Godspeed, trust) with their items, scoring and citations. */
+export const instruments = () => request("GET", `${API}/instruments`);
 export const describeFormula = (formula) => request("GET", `${API}/formulas/describe?formula=${enc(formula)}`);
 
 export function live(id, dropoutMinutes) {

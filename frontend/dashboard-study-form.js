@@ -31,6 +31,26 @@ function optional(value) {
   return text === "" ? null : text;
 }
 
+/** "Add a standard questionnaire": SUS, NASA-TLX, Godspeed or trust, all its items at once (scored in scores.csv). */
+function instrumentPicker(onAdd) {
+  const choice = h("select", { id: "instrument", "aria-label": "Standard questionnaire" },
+    h("option", { value: "" }, "Standard questionnaire…"));
+  const cite = h("p", { class: "small muted", id: "instrument-citation" });
+  let known = [];
+  api.instruments().then((list) => {
+    known = list;
+    choice.append(...list.map((i) => h("option", { value: i.name }, `${i.title} (${i.items.length} items)`)));
+  }).catch(() => { choice.disabled = true; });
+  choice.addEventListener("change", () => {
+    cite.textContent = known.find((i) => i.name === choice.value)?.citation ?? "";
+  });
+  const add = h("button", { type: "button", class: "ghost", id: "add-instrument", onclick: () => {
+    const picked = known.find((i) => i.name === choice.value);
+    if (picked) onAdd(picked.items);
+  } }, "Add its items");
+  return h("span", { class: "row" }, choice, add, cite);
+}
+
 export function studyFormView({ choices, study = null, onSaved }) {
   const d = study ?? choices.defaults;
   const editing = study !== null;
@@ -109,7 +129,11 @@ export function studyFormView({ choices, study = null, onSaved }) {
     const sync = () => { expectedField.hidden = kind.value !== "attention"; };
     kind.addEventListener("change", sync);
     kind.dataset.field = `questionnaire.${i}.kind`;
-    items.append(h("div", { class: "row item-row" },
+    // A standard questionnaire's item keeps its end labels and its place in the instrument (for scores.csv).
+    const extra = Object.fromEntries(["anchors", "instrument", "instrument_item"].filter((k) => item[k] != null)
+      .map((k) => [k, item[k]]));
+    items.append(h("div", { class: "row item-row", "data-extra": JSON.stringify(extra),
+      title: item.instrument ? `${item.instrument}: ${(item.anchors ?? []).join(" – ")}` : null },
       field("Id", h("input", { name: "item_id", value: item.id, placeholder: "e.g. learned", size: 12 }), `questionnaire.${i}.id`),
       field("Question", h("input", { name: "item_text", value: item.text, placeholder: "question text" }), `questionnaire.${i}.text`, { cls: "grow" }),
       kind, expectedField,
@@ -150,7 +174,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
         const item = { id: row.querySelector("[name=item_id]").value.trim(), text: row.querySelector("[name=item_text]").value,
           kind: row.querySelector("[name=item_kind]").value, required: row.querySelector("[name=item_required]").checked };
         if (item.kind === "attention") item.expected = Number(row.querySelector("[name=item_expected]").value) || null;
-        return item;
+        return { ...item, ...JSON.parse(row.dataset.extra || "{}") };
       }),
       consent_text: optional(f.get("consent_text")), consent_version: optional(f.get("consent_version")),
       completion_url: optional(f.get("completion_url")), completion_code: optional(f.get("completion_code")),
@@ -229,7 +253,9 @@ export function studyFormView({ choices, study = null, onSaved }) {
       h("label", { class: "inline" }, checkbox("quiz_feedback", d.quiz_feedback ?? true),
         "After a failed attempt, say which answers were wrong")),
     section("Questionnaire (an attention check is shown as an agreement item)", items,
-      h("button", { type: "button", class: "ghost", id: "add-item", onclick: () => addItem() }, "Add an item")),
+      h("div", { class: "row" },
+        h("button", { type: "button", class: "ghost", id: "add-item", onclick: () => addItem() }, "Add an item"),
+        instrumentPicker((list) => list.forEach(addItem)))),
     section("Consent",
       field("Consent text (empty: the default text, which explains withdrawal)", h("textarea", { name: "consent_text", rows: 3 }), "consent_text", { cls: "wide" }),
       field("Consent version", h("input", { name: "consent_version", value: editing ? study.consent_version : "", placeholder: "1" }), "consent_version"),

@@ -230,15 +230,33 @@ function executionPanel(state, live, { onStart, onAssess, onReplay, pending }) {
       h("button", { id: "watch-again", disabled: pending || replaying, onclick: onReplay }, "Watch it again")) : null);
 }
 
+// Standard questionnaires' scales (services/instruments.py): [lowest, highest, step], labelled only at the ends.
+const ANCHORED = { anchored5: [1, 5, 1], anchored7: [1, 7, 1], tlx21: [0, 100, 5] };
+
 function likertItem(item, index) {
   const name = `q-${item.id}`;
-  const scale = item.kind === "likert5" || item.kind === "attention" // an attention check looks like any item
-    ? LIKERT.map((label, i) => [i + 1, label])
-    : Array.from({ length: 10 }, (_, i) => [i + 1, String(i + 1)]);
-  return h("fieldset", { class: `item ${item.kind}` },
-    h("legend", {}, `${index + 1}. ${item.text}`, item.required ? "" : " (optional)"),
+  const anchored = ANCHORED[item.kind];
+  let scale;
+  if (anchored) {
+    const [low, high, step] = anchored;
+    scale = Array.from({ length: (high - low) / step + 1 }, (_, i) => [low + i * step, String(low + i * step)]);
+  } else if (item.kind === "likert5" || item.kind === "attention") { // an attention check looks like any item
+    scale = LIKERT.map((label, i) => [i + 1, label]);
+  } else {
+    scale = Array.from({ length: 10 }, (_, i) => [i + 1, String(i + 1)]);
+  }
+  const [lowLabel, highLabel] = item.anchors ?? ["", ""];
+  const legendId = `legend-${item.id}`;
+  // A mark's accessible name says where it lies between the ends ("1 of 5, Fake"), not just its number.
+  const named = (value, label) => (anchored
+    ? `${label}${value === anchored[0] ? `, ${lowLabel}` : value === anchored[1] ? `, ${highLabel}` : ""}` : null);
+  return h("fieldset", { class: `item ${item.kind}${anchored ? " anchored" : ""}` },
+    h("legend", { id: legendId }, `${index + 1}. ${item.text}`, item.required ? "" : " (optional)"),
+    anchored ? h("div", { class: "anchors", "aria-hidden": "true" }, h("span", {}, lowLabel), h("span", {}, highLabel)) : null,
     h("div", { class: "scale" }, scale.map(([value, label]) =>
-      h("label", {}, h("input", { type: "radio", name, value: String(value), required: item.required }),
+      h("label", { title: named(value, label) },
+        h("input", { type: "radio", name, value: String(value), required: item.required,
+          "aria-label": named(value, label) }),
         h("span", {}, label)))));
 }
 
