@@ -16,7 +16,8 @@ const REDIRECT_SECONDS = 8;
 const PLAYBACK_POLL_MS = 250; // how often the page reads how far the 3D view has played the robot's attempt
 const NO_PLAYER_GRACE_MS = 15000;
 const IDLE_WARNING_SECONDS = 60; // "are you still there?" this long before the idle time-out
-const UNDER_WAY = ["consent", "instructions", "quiz", "task", "questionnaire"]; // finished, yet no player to read for this long: the answer is not held back
+const UNDER_WAY = ["consent", "instructions", "quiz", "task", "questionnaire"];
+const FORMS = ["quiz", "questionnaire"]; // finished, yet no player to read for this long: the answer is not held back
 
 const api = new ParticipantApi(tokenFromLocation());
 const tabId = randomId(12); // per page load: a reload frees the old lease on pagehide
@@ -163,6 +164,12 @@ function renderProgress() {
   el.progressText.textContent = views.studyProgressText(progress);
 }
 
+/** What of the progress changes the page: not seconds_left, which changes on every read. */
+function progressKey() {
+  const p = state.progress;
+  return p ? [p.done, p.total, p.minutes_left] : null;
+}
+
 /** Ask before the tab is closed or left with Back while the study is under way. */
 function warnBeforeLeaving(event) {
   if (!state || !["instructions", "quiz", "task", "questionnaire"].includes(state.stage)) return;
@@ -175,13 +182,20 @@ function render(force = false) {
   if (!state) return;
   const intro = state.stage === "task" && !introAcknowledged();
   const sig = JSON.stringify([state.stage, state.task, state.step, state.demonstration, state.execution,
-    state.completion?.code, state.quiz, state.progress, live.moving, live.caption, live.view, pending, intro,
+    state.completion?.code, state.quiz, progressKey(), live.moving, live.caption, live.view, pending, intro,
     confirming, shown.complete, shown.fraction === null ? null : Math.round(shown.fraction * 20)]);
   if (sig === signature && !force) return;
   signature = sig;
-  const key = JSON.stringify([state.stage, state.task?.index, state.step, state.execution?.status, intro]);
+  const key = JSON.stringify([state.stage, state.task?.index, state.step, state.execution?.status, intro,
+    state.quiz?.failed_attempts]);
   const moved = key !== screenKey;
   screenKey = key;
+  // A form the participant is filling in is never rebuilt under them (their answers would go): only its bar.
+  if (!moved && !force && FORMS.includes(state.stage) && el.screen.firstChild) {
+    renderProgress();
+    for (const button of el.screen.querySelectorAll("button[type=submit]")) button.disabled = pending;
+    return;
+  }
   if (moved) confirming = false;
   el.top.textContent = state.stage === "task" ? state.task.name : "";
   renderProgress();
