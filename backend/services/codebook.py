@@ -71,8 +71,9 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
                  "participant chose an object), placed (the robot reported the table after placing it), "
                  "demonstration, execution_started, execution_finished, replay_watched (the participant watched "
                  "the robot's finished execution again), assessment, task_finished, questionnaire, completed, "
-                 "withdrawn, screened_out; from the page: tab_hidden, window_blur, paste (attention telemetry) "
-                 "and still_here (answered \"are you still there?\")"),
+                 "withdrawn, screened_out, tab_hidden (attention telemetry from the page: its tab was hidden), "
+                 "window_blur (the window lost the focus), paste (text pasted into an answer), still_here "
+                 "(answered \"are you still there?\")"),
         "object": ("category", "the object placed (place and placed events)",
                    "dinner_plate, small_plate, bowl, knife, fork"),
         "labels": ("json", "the objects in their places on the table after a placement, as the robot reported them "
