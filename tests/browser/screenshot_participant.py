@@ -49,7 +49,12 @@ def main(out: Path = OUT, viewport: dict[str, int] = LAPTOP, answer: Path | None
                 for demo in (["dinner_plate", "small_plate", "bowl", "knife", "fork"], ["dinner_plate", "bowl"]):
                     for obj in demo:
                         httpx.post(f"{server.url}/api/v1/me/placements", json={"object": obj}, headers=headers)
-                    httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers)
+                    deadline = time.monotonic() + 180  # the robot reports each placement's table first
+                    while httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers,
+                                     timeout=60).status_code != 200:
+                        if time.monotonic() > deadline:
+                            raise TimeoutError("the demonstration could not be finished within 180 s")
+                        time.sleep(1.0)
                 page.get_by_role("button", name="Watch the robot").click()
                 deadline = time.monotonic() + 60
                 while "(2 of" not in _caption(server, headers):
