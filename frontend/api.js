@@ -67,10 +67,18 @@ export class ParticipantApi {
   place(object, guard) { return this.act("/me/placements", { object, ...guard }); }
   finishDemonstration(guard) { return this.act("/me/demonstration/finish", guard); }
   startExecution(guard) { return this.act("/me/execution", guard); }
-  assess(acceptable, guard) { return this.act("/me/assessment", { acceptable, ...guard }); }
+  /** The verdict, with how much of the robot's attempt the page played (0-1; null: the page could not tell). */
+  assess(acceptable, guard, shownFraction = null) {
+    return this.act("/me/assessment", { acceptable, ...guard, shown_fraction: shownFraction });
+  }
   /** Show the finished execution again in the 3D view (its recorded motion); the server logs it. */
   replay(guard) { return this.act("/me/execution/replay", guard); }
   answerQuestionnaire(answers) { return this.act("/me/questionnaire", { answers }); }
+
+  /** Attention telemetry or presence (kind: tab_hidden, window_blur, paste, still_here); never retried. */
+  signal(kind, field = null) {
+    return this.request("POST", "/me/signals", field ? { kind, field } : { kind }, { retries: 0 });
+  }
 
   /** Prepare the 3D view for the current step: {available, url}. */
   openView() { return this.request("POST", "/me/view", undefined, { retries: 1 }); }

@@ -85,6 +85,8 @@ export const resetPilot = (id) => request("POST", `${API}/studies/${enc(id)}/pil
 export const eraseParticipant = (id, pid) => request("DELETE", `${API}/studies/${enc(id)}/participants/${enc(pid)}`);
 export const restoreParticipant = (id, pid) => request("POST", `${API}/studies/${enc(id)}/participants/${enc(pid)}/restore`);
 export const helpParticipant = (id, pid) => request("POST", `${API}/studies/${enc(id)}/participants/${enc(pid)}/help`);
+/** The standard questionnaires (SUS, NASA-TLX, Godspeed, trust) with their items, scoring and citations. */
+export const instruments = () => request("GET", `${API}/instruments`);
 export const describeFormula = (formula) => request("GET", `${API}/formulas/describe?formula=${enc(formula)}`);
 
 export function live(id, dropoutMinutes) {

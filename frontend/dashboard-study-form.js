@@ -14,6 +14,13 @@ export const OUTCOME_CODES = [
 const CODE_FIELDS = [...OUTCOME_CODES.map(([name]) => name), "screened_out_code"];
 export const LIVE_FIELDS = ["name", "pilot", ...CODE_FIELDS, "completion_url", "timeout_minutes", "places"];
 const TASK_HINT = "e.g. F(bowl) & (!fork U knife)";
+// The consent page's structured sections (services/page_settings.py CONSENT_FORM_FIELDS): [name, label, rows].
+const CONSENT_FORM = [
+  ["researcher", "Researcher(s)", 1], ["institution", "Institution", 1], ["contact", "Contact (e-mail)", 1],
+  ["ethics_approval", "Ethics approval (board and reference)", 1], ["duration", "Duration (empty: the page's estimate)", 1],
+  ["payment", "Payment", 1], ["recorded", "What is recorded (empty: the default)", 2],
+  ["retention", "Data retention", 2], ["withdrawal", "Right to withdraw (empty: the default)", 2],
+];
 
 function removeButton() {
   return h("button", { type: "button", class: "ghost", onclick: (e) => e.target.closest(".row, .block").remove() }, "Remove");
@@ -28,6 +35,26 @@ function field(label, input, path, { cls = "" } = {}) {
 function optional(value) {
   const text = String(value ?? "").trim();
   return text === "" ? null : text;
+}
+
+/** "Add a standard questionnaire": SUS, NASA-TLX, Godspeed or trust, all its items at once (scored in scores.csv). */
+function instrumentPicker(onAdd) {
+  const choice = h("select", { id: "instrument", "aria-label": "Standard questionnaire" },
+    h("option", { value: "" }, "Standard questionnaire…"));
+  const cite = h("p", { class: "small muted", id: "instrument-citation" });
+  let known = [];
+  api.instruments().then((list) => {
+    known = list;
+    choice.append(...list.map((i) => h("option", { value: i.name }, `${i.title} (${i.items.length} items)`)));
+  }).catch(() => { choice.disabled = true; });
+  choice.addEventListener("change", () => {
+    cite.textContent = known.find((i) => i.name === choice.value)?.citation ?? "";
+  });
+  const add = h("button", { type: "button", class: "ghost", id: "add-instrument", onclick: () => {
+    const picked = known.find((i) => i.name === choice.value);
+    if (picked) onAdd(picked.items);
+  } }, "Add its items");
+  return h("span", { class: "row" }, choice, add, cite);
 }
 
 export function studyFormView({ choices, study = null, onSaved }) {
@@ -110,7 +137,11 @@ export function studyFormView({ choices, study = null, onSaved }) {
     const sync = () => { expectedField.hidden = kind.value !== "attention"; };
     kind.addEventListener("change", sync);
     kind.dataset.field = `questionnaire.${i}.kind`;
-    items.append(h("div", { class: "row item-row" },
+    // A standard questionnaire's item keeps its end labels and its place in the instrument (for scores.csv).
+    const extra = Object.fromEntries(["anchors", "instrument", "instrument_item"].filter((k) => item[k] != null)
+      .map((k) => [k, item[k]]));
+    items.append(h("div", { class: "row item-row", "data-extra": JSON.stringify(extra),
+      title: item.instrument ? `${item.instrument}: ${(item.anchors ?? []).join(" – ")}` : null },
       field("Id", h("input", { name: "item_id", value: item.id, placeholder: "e.g. learned", size: 12 }), `questionnaire.${i}.id`),
       field("Question", h("input", { name: "item_text", value: item.text, placeholder: "question text" }), `questionnaire.${i}.text`, { cls: "grow" }),
       kind, expectedField,
@@ -151,7 +182,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
         const item = { id: row.querySelector("[name=item_id]").value.trim(), text: row.querySelector("[name=item_text]").value,
           kind: row.querySelector("[name=item_kind]").value, required: row.querySelector("[name=item_required]").checked };
         if (item.kind === "attention") item.expected = Number(row.querySelector("[name=item_expected]").value) || null;
-        return item;
+        return { ...item, ...JSON.parse(row.dataset.extra || "{}") };
       }),
       consent_text: optional(f.get("consent_text")), consent_version: optional(f.get("consent_version")),
       completion_url: optional(f.get("completion_url")),
@@ -160,6 +191,8 @@ export function studyFormView({ choices, study = null, onSaved }) {
       places: int("places"),
       robot_speed: optional(f.get("robot_speed")) === null ? undefined : Number(f.get("robot_speed")),
       pilot: Boolean(f.get("pilot")),
+      consent_form: Object.fromEntries(CONSENT_FORM.map(([name]) => [name, optional(f.get(`consent_${name}`))])),
+      allow_anonymous: Boolean(f.get("allow_anonymous")), quiz_feedback: Boolean(f.get("quiz_feedback")),
     };
   };
 
@@ -226,12 +259,22 @@ export function studyFormView({ choices, study = null, onSaved }) {
     section("Comprehension quiz (after the instructions)", quiz,
       h("div", { class: "row" },
         h("button", { type: "button", class: "ghost", id: "add-quiz", onclick: () => addQuiz() }, "Add a question"),
-        number("quiz_max_attempts", "Attempts before screening out", 1, 10))),
+        number("quiz_max_attempts", "Attempts before screening out", 1, 10)),
+      h("label", { class: "inline" }, checkbox("quiz_feedback", d.quiz_feedback ?? true),
+        "After a failed attempt, say which answers were wrong")),
     section("Questionnaire (an attention check is shown as an agreement item)", items,
-      h("button", { type: "button", class: "ghost", id: "add-item", onclick: () => addItem() }, "Add an item")),
+      h("div", { class: "row" },
+        h("button", { type: "button", class: "ghost", id: "add-item", onclick: () => addItem() }, "Add an item"),
+        instrumentPicker((list) => list.forEach(addItem)))),
     section("Consent",
       field("Consent text (empty: the default text, which explains withdrawal)", h("textarea", { name: "consent_text", rows: 3 }), "consent_text", { cls: "wide" }),
-      field("Consent version", h("input", { name: "consent_version", value: editing ? study.consent_version : "", placeholder: "1" }), "consent_version")),
+      field("Consent version", h("input", { name: "consent_version", value: editing ? study.consent_version : "", placeholder: "1" }), "consent_version"),
+      h("div", { class: "row wrap" }, CONSENT_FORM.map(([name, label, rows]) => field(label, rows > 1
+        ? h("textarea", { name: `consent_${name}`, rows })
+        : h("input", { name: `consent_${name}`, value: study?.consent_form?.[name] ?? "" }), `consent_form.${name}`,
+      { cls: rows > 1 ? "wide" : "" }))),
+      h("label", { class: "inline" }, checkbox("allow_anonymous", d.allow_anonymous),
+        "A link without PROLIFIC_PID may take part without an id (otherwise the page asks for the Prolific ID)")),
     h("fieldset", { "data-live": "yes" }, h("legend", {}, "Completion on Prolific"),
       field("Completion redirect ({code} is replaced)", h("input", { name: "completion_url", id: "completion_url",
         value: study?.completion_url ?? "", placeholder: "https://app.prolific.com/submissions/complete?cc={code}" }), "completion_url", { cls: "wide" }),
@@ -248,6 +291,9 @@ export function studyFormView({ choices, study = null, onSaved }) {
       h("a", { href: editing ? `#/study/${encodeURIComponent(study.id)}` : "#/", class: "button ghost" }, "Cancel")),
     message].filter(Boolean));
   if (editing) form.querySelector("[name=consent_text]").value = study.consent_text;
+  for (const [name, , rows] of CONSENT_FORM) {
+    if (rows > 1) form.querySelector(`[name=consent_${name}]`).value = study?.consent_form?.[name] ?? "";
+  }
   if (frozen) {
     for (const set of form.querySelectorAll("fieldset[data-live=no]")) set.disabled = true;
   }

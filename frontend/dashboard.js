@@ -41,6 +41,17 @@ function when(iso) {
   return `${d.getFullYear()}-${two(d.getMonth() + 1)}-${two(d.getDate())} ${two(d.getHours())}:${two(d.getMinutes())}`;
 }
 
+// The page's attention telemetry (tab hidden, window left, pastes): flagged from this many signals in all.
+const LOOKED_AWAY_FLAG = 3;
+function signalsText(p) {
+  const n = p.attention_signals ?? {};
+  return `tab hidden ${n.tab_hidden ?? 0}×, window left ${n.window_blur ?? 0}×, pasted ${n.paste ?? 0}×`;
+}
+function lookedAway(p) {
+  const n = p.attention_signals ?? {};
+  return (n.tab_hidden ?? 0) + (n.window_blur ?? 0) + (n.paste ?? 0) >= LOOKED_AWAY_FLAG;
+}
+
 function pill(text, kind = text) {
   return h("span", { class: `pill pill-${kind}` }, text);
 }
@@ -527,6 +538,7 @@ function renderLive(box, data, study, refresh) {
     h("td", {}, progressText(p, study)),
     h("td", {}, pill(p.status.replace("_", " "), p.status), p.dropout ? pill("dropout") : null,
       p.attention_failed ? pill("attention failed", "flag") : null,
+      lookedAway(p) ? h("span", { class: "pill flag", title: signalsText(p) }, "looked away") : null,
       p.end_reason && p.end_reason !== "withdrew" ? h("span", { class: "small muted" }, ` ${END_REASONS[p.end_reason] ?? p.end_reason}`) : null),
     h("td", { class: "num", title: `joined ${when(p.created_at)}` }, duration(p.elapsed_seconds)),
     h("td", { title: when(p.last_activity_at) }, ago(p.last_activity_at)),
@@ -602,7 +614,8 @@ async function participantView(studyId, participantId) {
     ["External id", p.prolific_pid ?? "–"], ["Completion code", p.outcome ? `${p.completion_code ?? "no code"} (${OUTCOME_NAMES[p.outcome] ?? p.outcome})` : "–"], ["Seed", p.seed],
     ["Elapsed", duration(p.elapsed_seconds)], ["Task order", (p.task_order ?? study.tasks.map((_, i) => i)).map((i) => study.tasks[i].name).join(" → ")],
     ["Left early", p.end_reason ? END_REASONS[p.end_reason] ?? p.end_reason : "–"],
-    ["Attention checks", p.attention_failed ? "failed" : "passed or none"]];
+    ["Attention checks", p.attention_failed ? "failed" : "passed or none"],
+    ["Attention telemetry", signalsText(p)]];
   app.replaceChildren(
     h("div", { class: "page-head" }, h("h1", {}, `Participant #${p.participant_id} `, pill(p.status), p.pilot ? pill("pilot") : null),
       h("div", { class: "row" }, h("button", { onclick: () => route() }, "Refresh"),

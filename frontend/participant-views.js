@@ -17,19 +17,45 @@ function heading(text) {
   return h("h1", { tabindex: "-1", class: "focus-target" }, text);
 }
 
+/** The study's information sheet: its text, then the structured sections (who, contact, ethics approval,
+ * duration, payment, what is recorded, retention, withdrawal) and the version agreed to. */
+export function consentSheet(state) {
+  const consent = state.consent;
+  const sections = [...(consent.sections || [])];
+  if (!sections.some((s) => s.key === "duration") && state.progress?.minutes_left) {
+    const at = sections.findIndex((s) => ["payment", "recorded", "retention", "withdrawal"].includes(s.key));
+    const duration = { key: "duration", heading: "How long it takes", text: `About ${state.progress.minutes_left} minutes.` };
+    sections.splice(at < 0 ? sections.length : at, 0, duration);
+  }
+  return h("div", { class: "consent-sheet", id: "consent-sheet" },
+    h("p", { class: "consent-text" }, consent.text),
+    sections.map((s) => h("section", { class: "consent-section", "data-section": s.key },
+      h("h2", {}, s.heading), h("p", {}, s.text))),
+    h("p", { class: "consent-version" }, `Information sheet version ${consent.version}`,
+      consent.given_at ? ` · you agreed on ${new Date(consent.given_at).toLocaleString()}` : ""));
+}
+
+function printButton() {
+  return h("button", { type: "button", id: "print-consent", onclick: () => window.print() }, "Print or save a copy");
+}
+
 export function consentView(state, { onAgree, onDecline }) {
-  return h("section", { class: "card narrow" },
-    heading("Welcome"),
-    h("p", { class: "consent-text" }, state.consent.text),
-    h("p", {}, "Do you agree to take part?"),
-    h("div", { class: "buttons" },
+  return h("section", { class: "card narrow consent" },
+    heading("About this study"),
+    state.consent.anonymous && state.consent.allow_anonymous
+      ? h("p", { class: "notice", id: "anonymous-note" }, "You are taking part without a Prolific ID: nothing links "
+        + "your answers to an account, and no payment can be made through Prolific for this session.") : null,
+    consentSheet(state),
+    h("div", { class: "buttons no-print" }, printButton()),
+    h("p", { class: "question no-print" }, "Do you agree to take part?"),
+    h("div", { class: "buttons no-print" },
       h("button", { class: "primary", onclick: onAgree }, "I agree, continue"),
       h("button", { onclick: onDecline }, "I do not agree")));
 }
 
-export function instructionsView(_state, { onStart }) {
-  return h("section", { class: "card narrow" },
-    heading("How this works"),
+/** What the study asks of the participant (shown before the first task, and again from the quiz). */
+export function instructionsBody() {
+  return h("div", { class: "instructions-body" },
     h("p", {}, "You will teach a robot arm to set a dinner table. The arm takes five objects (a dinner plate, a small ",
       "plate, a bowl, a knife and a fork) from Table A, on the right of the 3D view, and puts them on Table B, on ",
       "the left."),
@@ -42,7 +68,13 @@ export function instructionsView(_state, { onStart }) {
       h("li", {}, h("strong", {}, "It shows you. "), "At the end of each task the robot sets the table by itself ",
         "a few times so you can see what it has learned.")),
     h("p", {}, "The order in which things are placed can matter. Before each task you will see what the table should ",
-      "look like at the end."),
+      "look like at the end."));
+}
+
+export function instructionsView(_state, { onStart }) {
+  return h("section", { class: "card narrow" },
+    heading("How this works"),
+    instructionsBody(),
     h("div", { class: "buttons" }, h("button", { class: "primary", onclick: onStart }, "Start")));
 }
 
@@ -56,13 +88,14 @@ export function goalFigure(task, assetUrl) {
 
 export function taskIntroView(state, { onBegin, assetUrl }) {
   const task = state.task;
+  // The goal picture comes before the button on every screen: on a phone the two stack in this order.
   return h("section", { class: "card intro" },
     h("p", { class: "eyebrow" }, `Task ${(task.position ?? task.index) + 1} of ${task.total}`),
     heading(task.name),
     h("div", { class: "intro-body" },
-      h("div", {}, h("p", { class: "instructions" }, task.instructions),
-        h("div", { class: "buttons" }, h("button", { class: "primary", onclick: onBegin }, "Begin this task"))),
-      goalFigure(task, assetUrl)));
+      h("p", { class: "instructions" }, task.instructions),
+      goalFigure(task, assetUrl),
+      h("div", { class: "buttons intro-start" }, h("button", { class: "primary", onclick: onBegin }, "Begin this task"))));
 }
 
 /** The study-wide progress line: "Step 5 of 14 · about 12 minutes left". */
@@ -126,7 +159,7 @@ function demonstrationPanel(state, live, { onPlace, onFinish, onConfirmFinish, o
     statusLine(status, moving),
     h("p", { class: "placed" }, h("strong", {}, "On Table B: "), list(placed)),
     waiting.length ? h("div", { class: "object-buttons" },
-      h("p", { class: "hint" }, "Or choose with the keyboard:"),
+      h("p", { class: "hint" }, "Or choose from this list:"),
       waiting.map((obj) => h("button", { class: "object", "data-object": obj, disabled: moving,
         onclick: () => onPlace(obj) }, pretty(obj)))) : null,
     confirming && !moving
@@ -163,44 +196,77 @@ function executionPanel(state, live, { onStart, onAssess, onReplay, pending }) {
   }
   const finalLabels = execution.trace?.length ? execution.trace[execution.trace.length - 1] : [];
   const missed = events.filter((o) => !finalLabels.includes(o));
+  const notPlaced = state.objects.filter((o) => !events.includes(o));
   const replaying = live.moving;
+  // The answer waits until the page has played the robot's attempt to its end (or the page cannot tell).
+  const shown = live.shown ?? { fraction: null, complete: true };
+  const unseen = !shown.complete;
+  const locked = pending || replaying || unseen;
+  const percent = shown.fraction === null ? null : Math.round(100 * shown.fraction);
+  const status = replaying
+    ? statusLine(live.caption ? `${live.caption}. The buttons work again when it has finished.` : "The robot is busy.", true)
+    : unseen
+      ? statusLine(`The robot has finished; the 3D view is still showing it (${percent ?? 0}% shown). `
+        + "The buttons work when it has been shown to the end.", true)
+      : statusLine("The robot has finished.");
   return h("div", {},
     heading(title),
-    replaying
-      ? statusLine(live.caption ? `${live.caption}. The buttons work again when it has finished.` : "The robot is busy.", true)
-      : statusLine("The robot has finished."),
-    h("p", { class: "placed" }, h("strong", {}, "It placed, in this order: "), list(events)),
-    missed.length ? h("p", { class: "placed" }, h("strong", {}, "Not in place at the end: "), list(missed)) : null,
+    status,
+    h("div", { class: "outcome", id: "outcome" },
+      h("p", { class: "placed" }, h("strong", {}, "It placed, in this order: "),
+        events.length ? events.map((o, i) => `${i + 1}. the ${pretty(o)}`).join(", ") : "nothing"),
+      h("p", { class: "placed not-placed" }, h("strong", {}, "It did not place: "),
+        notPlaced.length ? theList(notPlaced) : "nothing (it placed all five objects)"),
+      missed.length ? h("p", { class: "placed" }, h("strong", {}, "Not in place at the end: "), theList(missed)) : null),
     h("p", { class: "question" }, query
       ? "Is this an acceptable way to set the table for this task?"
       : "Did the robot do the task correctly?"),
     h("div", { class: "buttons" },
-      h("button", { class: "primary good", id: "acceptable", disabled: pending || replaying,
+      h("button", { class: "primary good", id: "acceptable", disabled: locked,
         onclick: () => onAssess(true) }, query ? "Acceptable" : "Yes, correct"),
-      h("button", { class: "primary bad", id: "unacceptable", disabled: pending || replaying,
+      h("button", { class: "primary bad", id: "unacceptable", disabled: locked,
         onclick: () => onAssess(false) }, query ? "Unacceptable" : "No, not correct")),
     live.view ? h("div", { class: "buttons" },
       h("button", { id: "watch-again", disabled: pending || replaying, onclick: onReplay }, "Watch it again")) : null);
 }
 
+// Standard questionnaires' scales (services/instruments.py): [lowest, highest, step], labelled only at the ends.
+const ANCHORED = { anchored5: [1, 5, 1], anchored7: [1, 7, 1], tlx21: [0, 100, 5] };
+
 function likertItem(item, index) {
   const name = `q-${item.id}`;
-  const scale = item.kind === "likert5" || item.kind === "attention" // an attention check looks like any item
-    ? LIKERT.map((label, i) => [i + 1, label])
-    : Array.from({ length: 10 }, (_, i) => [i + 1, String(i + 1)]);
-  return h("fieldset", { class: `item ${item.kind}` },
-    h("legend", {}, `${index + 1}. ${item.text}`, item.required ? "" : " (optional)"),
+  const anchored = ANCHORED[item.kind];
+  let scale;
+  if (anchored) {
+    const [low, high, step] = anchored;
+    scale = Array.from({ length: (high - low) / step + 1 }, (_, i) => [low + i * step, String(low + i * step)]);
+  } else if (item.kind === "likert5" || item.kind === "attention") { // an attention check looks like any item
+    scale = LIKERT.map((label, i) => [i + 1, label]);
+  } else {
+    scale = Array.from({ length: 10 }, (_, i) => [i + 1, String(i + 1)]);
+  }
+  const [lowLabel, highLabel] = item.anchors ?? ["", ""];
+  const legendId = `legend-${item.id}`;
+  // A mark's accessible name says where it lies between the ends ("1 of 5, Fake"), not just its number.
+  const named = (value, label) => (anchored
+    ? `${label}${value === anchored[0] ? `, ${lowLabel}` : value === anchored[1] ? `, ${highLabel}` : ""}` : null);
+  return h("fieldset", { class: `item ${item.kind}${anchored ? " anchored" : ""}` },
+    h("legend", { id: legendId }, `${index + 1}. ${item.text}`, item.required ? "" : " (optional)"),
+    anchored ? h("div", { class: "anchors", "aria-hidden": "true" }, h("span", {}, lowLabel), h("span", {}, highLabel)) : null,
     h("div", { class: "scale" }, scale.map(([value, label]) =>
-      h("label", {}, h("input", { type: "radio", name, value: String(value), required: item.required }),
+      h("label", { title: named(value, label) },
+        h("input", { type: "radio", name, value: String(value), required: item.required,
+          "aria-label": named(value, label) }),
         h("span", {}, label)))));
 }
 
-export function questionnaireView(state, { onSubmit, pending }) {
+export function questionnaireView(state, { onSubmit, onPaste, pending }) {
   const items = state.questionnaire || [];
   const form = h("form", { class: "questionnaire", novalidate: true },
     items.map((item, i) => item.kind === "text"
       ? h("fieldset", { class: "item text" }, h("legend", {}, `${i + 1}. ${item.text}`, item.required ? "" : " (optional)"),
-        h("textarea", { name: `q-${item.id}`, rows: "3", maxlength: "5000" }))
+        h("textarea", { name: `q-${item.id}`, rows: "3", maxlength: "5000", "aria-label": item.text,
+          onpaste: () => onPaste?.(item.id) }))
       : likertItem(item, i)),
     h("p", { class: "error", id: "form-error", role: "alert" }),
     h("div", { class: "buttons" }, h("button", { class: "primary", type: "submit", disabled: pending }, "Submit answers")));
@@ -229,13 +295,21 @@ export function questionnaireView(state, { onSubmit, pending }) {
     form);
 }
 
+/** The completion code with a button that copies it (`onCopy(code)`), and a line for what the copy did. */
+export function codeBlock(code, onCopy) {
+  return h("div", { class: "code-block" },
+    h("p", { class: "code", id: "completion-code" }, code),
+    h("button", { type: "button", id: "copy-code", onclick: () => onCopy(code) }, "Copy the code"),
+    h("span", { id: "copy-note", class: "hint", role: "status" }));
+}
+
 /** The last page: the completion code, what the robot learned in plain words, and the way back (counting down). */
-export function doneView(state, { secondsLeft }) {
+export function doneView(state, { secondsLeft, onCopy }) {
   const { code, redirect_url: url, learned } = state.completion;
   return h("section", { class: "card narrow" },
     heading("Thank you!"),
     h("p", {}, "You have finished the study. Your completion code is:"),
-    h("p", { class: "code", id: "completion-code" }, code),
+    codeBlock(code, onCopy),
     learned?.length ? h("div", { class: "summary" }, h("p", {}, "What the robot learned from you:"),
       h("ul", {}, learned.map((t) => h("li", {}, h("strong", {}, `Task ${t.task_index + 1}: `),
         t.summary || `${t.map_description}.`)))) : null,
@@ -244,7 +318,17 @@ export function doneView(state, { secondsLeft }) {
       : h("span", { class: "countdown", id: "countdown", "aria-live": "polite" },
         `You will be taken back in ${secondsLeft} second${secondsLeft === 1 ? "" : "s"}. `),
     h("a", { href: url, id: "redirect", class: "button primary" }, "Go back now"))
-      : h("p", {}, "You can close this page now."));
+      : h("p", {}, "You can close this page now."),
+    consentCopy(state));
+}
+
+/** The information sheet agreed to, to read again or print, at the end. */
+export function consentCopy(state) {
+  if (!state.consent?.given_at) return null;
+  return h("details", { class: "reminder consent-copy", id: "consent-copy" },
+    h("summary", {}, "The study information you agreed to (to print or keep)"),
+    consentSheet(state),
+    h("div", { class: "buttons no-print" }, printButton()));
 }
 
 export function withdrawnView() {

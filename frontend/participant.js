@@ -13,6 +13,11 @@ const TICK_WITH_EVENTS_MS = 5000; // with them: only the lease heartbeat and a s
 const HEARTBEAT_MS = 5000;
 const VIEWER_STALL_MS = 8000; // no 3D view connected for this long while one is shown: reload it
 const REDIRECT_SECONDS = 8;
+const PLAYBACK_POLL_MS = 250; // how often the page reads how far the 3D view has played the robot's attempt
+const NO_PLAYER_GRACE_MS = 15000;
+const IDLE_WARNING_SECONDS = 60; // "are you still there?" this long before the idle time-out
+const UNDER_WAY = ["consent", "instructions", "quiz", "task", "questionnaire"];
+const FORMS = ["quiz", "questionnaire"]; // finished, yet no player to read for this long: the answer is not held back
 
 const api = new ParticipantApi(tokenFromLocation());
 const tabId = randomId(12); // per page load: a reload frees the old lease on pagehide
@@ -44,6 +49,9 @@ let events = null; // the EventSource of the server's change notices
 let eventsOpen = false;
 let refreshing = null; // the refresh under way; a change notice meanwhile asks for one more
 let refreshAgain = false;
+// How much of the robot's attempt the 3D view has played (per step: task, kind, index): the answer waits for it.
+let idleReadAt = Date.now(); // when state.idle was read
+let shown = { step: null, playing: false, fraction: null, complete: true, unreadSince: null };
 
 function showBanner(text) {
   el.banner.textContent = text;
@@ -63,7 +71,7 @@ function guard() {
 }
 
 function setState(next, robot = null) {
-  if (next) state = next;
+  if (next) { state = next; idleReadAt = Date.now(); }
   if (robot) live = robot;
   render();
 }
@@ -124,10 +132,12 @@ const handlers = {
     return next;
   }),
   onStartExecution: () => act(() => api.startExecution(guard())),
-  onAssess: (acceptable) => act(() => api.assess(acceptable, guard())),
+  onAssess: (acceptable) => act(() => api.assess(acceptable, guard(), shown.fraction)),
   onSubmit: (answers) => act(() => api.answerQuestionnaire(answers)),
   onQuiz: (answers) => act(() => api.act("/me/quiz", { answers })),
   onWithdraw: () => act(() => api.act("/me/withdraw", undefined)),
+  onPaste: (field) => sendSignal("paste", field),
+  onCopy: (code) => copyCode(code),
   onTakeOver: async () => {
     try {
       if (await claim(true)) await refresh();
@@ -154,6 +164,12 @@ function renderProgress() {
   el.progressText.textContent = views.studyProgressText(progress);
 }
 
+/** What of the progress changes the page: not seconds_left, which changes on every read. */
+function progressKey() {
+  const p = state.progress;
+  return p ? [p.done, p.total, p.minutes_left] : null;
+}
+
 /** Ask before the tab is closed or left with Back while the study is under way. */
 function warnBeforeLeaving(event) {
   if (!state || !["instructions", "quiz", "task", "questionnaire"].includes(state.stage)) return;
@@ -166,13 +182,20 @@ function render(force = false) {
   if (!state) return;
   const intro = state.stage === "task" && !introAcknowledged();
   const sig = JSON.stringify([state.stage, state.task, state.step, state.demonstration, state.execution,
-    state.completion?.code, state.quiz, state.progress, live.moving, live.caption, live.view, pending, intro,
-    confirming]);
+    state.completion?.code, state.quiz, progressKey(), live.moving, live.caption, live.view, pending, intro,
+    confirming, shown.complete, shown.fraction === null ? null : Math.round(shown.fraction * 20)]);
   if (sig === signature && !force) return;
   signature = sig;
-  const key = JSON.stringify([state.stage, state.task?.index, state.step, state.execution?.status, intro]);
+  const key = JSON.stringify([state.stage, state.task?.index, state.step, state.execution?.status, intro,
+    state.quiz?.failed_attempts]);
   const moved = key !== screenKey;
   screenKey = key;
+  // A form the participant is filling in is never rebuilt under them (their answers would go): only its bar.
+  if (!moved && !force && FORMS.includes(state.stage) && el.screen.firstChild) {
+    renderProgress();
+    for (const button of el.screen.querySelectorAll("button[type=submit]")) button.disabled = pending;
+    return;
+  }
   if (moved) confirming = false;
   el.top.textContent = state.stage === "task" ? state.task.name : "";
   renderProgress();
@@ -183,8 +206,8 @@ function render(force = false) {
     case "instructions": showScreen(views.instructionsView(state, withPending)); break;
     case "questionnaire": showScreen(views.questionnaireView(state, withPending)); break;
     case "quiz": showScreen(ops.quizView(state, withPending)); break;
-    case "withdrawn": case "screened_out": leaveScreen((secondsLeft) => ops.endedView(state, { secondsLeft })); break;
-    case "done": leaveScreen((secondsLeft) => views.doneView(state, { secondsLeft })); break;
+    case "withdrawn": case "screened_out": leaveScreen((secondsLeft) => ops.endedView(state, { secondsLeft, onCopy: handlers.onCopy })); break;
+    case "done": leaveScreen((secondsLeft) => views.doneView(state, { secondsLeft, onCopy: handlers.onCopy })); break;
     case "task":
       if (intro) { showScreen(views.taskIntroView(state, withPending)); break; }
       renderTask(withPending, moved);
@@ -201,7 +224,7 @@ function render(force = false) {
 function renderTask(withPending, moved) {
   el.screen.hidden = true;
   el.task.hidden = false;
-  const panel = views.taskPanel(state, live, { ...withPending, onStart: handlers.onStartExecution });
+  const panel = views.taskPanel(state, { ...live, shown }, { ...withPending, onStart: handlers.onStartExecution });
   // Keep the keyboard focus on the same button across a re-render (the panel is rebuilt).
   const focused = document.activeElement?.id || document.activeElement?.dataset?.object;
   el.panel.replaceChildren(panel);
@@ -271,6 +294,85 @@ function watchViewer() {
   } else if (Date.now() - viewer.noWatcherSince > VIEWER_STALL_MS) {
     loadFrame(); // the view's connection was lost (server restart, network): connect again
   }
+}
+
+/** Send one attention signal while the study is under way; a lost one is not worth a retry or a banner. */
+function sendSignal(kind, field = null) {
+  if (!state || !UNDER_WAY.includes(state.stage) || blocked) return;
+  api.signal(kind, field).catch(() => {});
+}
+
+/** Copy the completion code; without the Clipboard API (an insecure page), select it so the participant can copy. */
+async function copyCode(code) {
+  const note = document.getElementById("copy-note");
+  try {
+    await navigator.clipboard.writeText(code);
+    if (note) note.textContent = "Copied.";
+  } catch {
+    const node = document.getElementById("completion-code");
+    if (node) window.getSelection()?.selectAllChildren(node);
+    if (note) note.textContent = "Selected: press Ctrl+C (or Cmd+C) to copy it.";
+  }
+}
+
+/** "Are you still there?" a minute before the study's idle time-out (state.idle: its length and the idle time). */
+function watchIdle() {
+  const idle = state && UNDER_WAY.includes(state.stage) && !blocked ? state.idle : null;
+  const dialog = document.getElementById("idle-dialog");
+  if (!idle) { dialog?.close(); return; }
+  const left = idle.timeout_seconds - idle.idle_seconds - (Date.now() - idleReadAt) / 1000;
+  if (left > IDLE_WARNING_SECONDS) { if (dialog?.open) dialog.close(); return; }
+  const box = dialog ?? ops.idleDialog(async () => {
+    box.close();
+    try { await api.signal("still_here"); await refreshState(); } catch (error) { handleError(error); }
+  });
+  const seconds = Math.max(0, Math.ceil(left));
+  box.querySelector("#idle-seconds").textContent = `${seconds} second${seconds === 1 ? "" : "s"}`;
+  if (!box.open) { box.showModal ? box.showModal() : box.setAttribute("open", ""); }
+  if (left <= 0) refreshState().catch(() => {}); // the server then says the session has ended
+}
+
+async function refreshState() {
+  setState(await api.state());
+  idleReadAt = Date.now();
+}
+
+/** The seconds the 3D view's player has played of the recorded attempt (viser's hidden playback slider), or null. */
+function playbackSeconds() {
+  try {
+    const thumb = el.frame.contentDocument?.querySelector('.mantine-Slider-root [role="slider"]');
+    const seconds = thumb ? Number(thumb.getAttribute("aria-valuenow")) : NaN;
+    return Number.isFinite(seconds) ? seconds : null;
+  } catch {
+    return null; // the frame is between pages
+  }
+}
+
+/** Follow how much of the robot's attempt has been shown; the answer buttons unlock once it has played to the end. */
+function watchPlayback() {
+  const ex = state?.stage === "task" ? state.execution : null;
+  if (!ex || ex.status === "not_started") return;
+  const step = JSON.stringify([state.task.index, ex.kind, ex.index]);
+  const motion = Number(ex.motion_seconds) || 0;
+  const playing = Boolean(viewer.url?.includes("playbackPath=")) && viewer.available !== false;
+  if (shown.step !== step || (playing && !shown.playing)) {
+    shown = { step, playing, fraction: playing && motion > 0 ? 0 : null, complete: !playing || motion <= 0,
+      unreadSince: null };
+  }
+  if (shown.complete && shown.fraction === 1) return;
+  const before = JSON.stringify(shown);
+  const seconds = playing ? playbackSeconds() : null;
+  if (seconds !== null && motion > 0) {
+    shown.unreadSince = null;
+    shown.fraction = Math.max(shown.fraction ?? 0, Math.min(1, seconds / motion));
+    if (shown.fraction >= 0.995) { shown.fraction = 1; shown.complete = true; }
+  } else if (ex.status === "finished" && !shown.complete) {
+    // No player to read (the view failed to load): after a grace period the answer is allowed, and the
+    // fraction sent with it says how much was seen (null: unknown).
+    shown.unreadSince ??= Date.now();
+    if (Date.now() - shown.unreadSince > NO_PLAYER_GRACE_MS) shown.complete = true;
+  }
+  if (JSON.stringify(shown) !== before) render();
 }
 
 /** The last screen (finished, or left early): `view(secondsLeft)` builds it; with a redirect address it counts
@@ -377,6 +479,13 @@ async function tick() {
   setTimeout(tick, eventsOpen ? TICK_WITH_EVENTS_MS : TICK_MS);
 }
 
+setInterval(watchPlayback, PLAYBACK_POLL_MS);
+setInterval(watchIdle, 1000);
+document.addEventListener("visibilitychange", () => { if (document.visibilityState === "hidden") sendSignal("tab_hidden"); });
+// Focus moving into the 3D view's frame blurs the window too: only a window left while the tab stays visible counts.
+window.addEventListener("blur", () => setTimeout(() => {
+  if (!document.hasFocus() && document.visibilityState === "visible") sendSignal("window_blur");
+}, 0));
 window.addEventListener("pagehide", () => { if (!finished()) api.releaseTab(tabId); });
 window.addEventListener("beforeunload", warnBeforeLeaving);
 

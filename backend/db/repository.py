@@ -387,3 +387,10 @@ def iter_study_task_sessions(session: Session, *, study_id: str,
     if not include_pilot:
         stmt = stmt.where(ParticipantRow.pilot.is_(False))
     yield from session.scalars(stmt)
+
+
+def participant_events(session: Session, *, participant_id: int, kinds: tuple[str, ...]) -> list[EventRow]:
+    """One participant's events of the given kinds, in order."""
+    stmt = (select(EventRow).where(EventRow.participant_id == participant_id, EventRow.kind.in_(kinds))
+            .order_by(EventRow.seq))
+    return list(session.scalars(stmt))

@@ -7,7 +7,7 @@ from datetime import datetime, timezone
 from typing import Any
 
 from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Integer, MetaData, String, Text, UniqueConstraint,
-                        false, text)
+                        false, text, true)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 # Deterministic constraint names so that migrations (batch mode on SQLite) can refer to them.
@@ -80,6 +80,11 @@ class StudyRow(Base):
     archived_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)  # hidden from the list
     robot_speed: Mapped[float] = mapped_column(Float, default=1.0, server_default=text("1.0"))  # playback rate 1-3
     places: Mapped[int | None] = mapped_column(Integer, nullable=True)  # participants it takes (None: no limit)
+    # The participant page's settings (services/page_settings.py): the structured consent form, links without a
+    # PROLIFIC_PID, whether a failed quiz names the wrong answers.
+    consent_form: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict, server_default="{}")
+    allow_anonymous: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
+    quiz_feedback: Mapped[bool] = mapped_column(Boolean, default=True, server_default=true())
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)
 
@@ -111,6 +116,8 @@ class ParticipantRow(Base):
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     last_activity_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     finished_at: Mapped[datetime | None] = mapped_column(DateTime(timezone=True), nullable=True)
+    # Attention telemetry from the page (services/attention.py): {"tab_hidden": n, "window_blur": n, "paste": n}.
+    attention_signals: Mapped[dict[str, int]] = mapped_column(JSON, default=dict, server_default="{}")
     n_events: Mapped[int] = mapped_column(Integer, default=0)
     task_order: Mapped[list[int] | None] = mapped_column(JSON, nullable=True)  # study task indices; None: as listed
     quiz_failures: Mapped[int] = mapped_column(Integer, default=0, server_default="0")

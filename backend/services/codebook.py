@@ -10,6 +10,7 @@ from typing import Any
 from .context import Context
 from .exports import EXPORT_COLUMNS, EXPORTS, export_rows
 from .outcomes import OUTCOME_WORDS
+from .instruments import INSTRUMENT_KINDS, INSTRUMENTS
 from .studies import get_study
 
 CODEBOOK_COLUMNS = ["file", "column", "type", "meaning", "units_or_levels", "likert_labels"]
@@ -69,6 +70,10 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "n_events": ("integer", "the participant's rows in events.csv (a withdrawn participant's events are deleted "
                      "but the withdrawal)", "count"),
         "seed": ("integer", "the participant's session seed (task i uses seed + i)", ""),
+        "tab_hidden": ("integer", "times the study's tab was hidden (another tab or app shown; Page Visibility API) "
+                       "while the study was under way", "count"),
+        "window_blur": ("integer", "times the study's window lost the focus while the study was under way", "count"),
+        "paste": ("integer", "times text was pasted into a questionnaire answer", "count"),
     },
     "events": {
         "seq": ("integer", "the event's number in the participant's log, from 1", ""),
@@ -77,7 +82,9 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
                  "demonstration, execution_started, execution_finished, replay_watched (the participant watched "
                  "the robot's finished execution again), assessment, task_finished, questionnaire, completed, "
                  "withdrawn, screened_out, restored (the experimenter brought back a participant who timed out or "
-                 "was screened out), helped_on (the experimenter moved a stuck participant past their stage)"),
+                 "was screened out), helped_on (the experimenter moved a stuck participant past their stage), "
+                 "tab_hidden (attention telemetry from the page: its tab was hidden), window_blur (the window lost "
+                 "the focus), paste (text pasted into an answer), still_here (answered \"are you still there?\")"),
         "object": ("category", "the object placed (place and placed events)",
                    "dinner_plate, small_plate, bowl, knife, fork"),
         "labels": ("json", "the objects in their places on the table after a placement, as the robot reported them "
@@ -99,6 +106,11 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "learning_step": ("integer", "the belief this step's answer led to: beliefs.csv's step for the same "
                           "participant_id and task_index (empty: practice and tests, which the learner does not "
                           "learn from)", ""),
+        "shown_fraction": ("number", "how much of the robot's recorded motion the participant's page had played "
+                           "when the verdict was given (1: to the end; empty: not reported, e.g. no 3D view or "
+                           "a demonstration)", "fraction 0-1"),
+        "replays_watched": ("integer", "times the participant pressed \"Watch it again\" before the verdict "
+                            "(empty for demonstrations)", "count"),
     },
     "beliefs": {
         "step": ("integer", "learning step: 0 is the prior, k the belief after the k-th demonstration or assessed "
@@ -135,19 +147,46 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "attention_passed": ("boolean", "the answer was the expected one (empty for other items)", BOOL),
         "answered_at": ("datetime", "when the questionnaire was submitted", TIME),
     },
+    "scores": {
+        "instrument": ("category", "the standard questionnaire (rows below give each one's scoring and citation)",
+                       "sus, tlx, godspeed, trust"),
+        "scale": ("category", "the score's scale", "sus; raw_tlx, mental, physical, temporal, performance, effort, "
+                  "frustration; anthropomorphism, animacy, likeability, intelligence, safety; trust, distrust"),
+        "score": ("number", "the scale's score by the instrument's published rule", "sus and tlx 0-100; godspeed "
+                  "1-5; trust 1-7"),
+        "n_items": ("integer", "items the score is made of (all answered)", "count"),
+        "answered_at": ("datetime", "when the questionnaire was submitted", TIME),
+    },
 }
 
 
 def _item_rows(questionnaire: list[dict[str, Any]]) -> Iterator[list[Any]]:
     for item in questionnaire:
         kind = item["kind"]
-        levels = {"likert5": "1-5", "rating10": "1-10", "text": "free text",
-                  "attention": f"1-5; expected {item.get('expected')}"}[kind]
-        labels = LIKERT5 if kind in ("likert5", "attention") else ("1 and 10 as the item text says"
-                                                                    if kind == "rating10" else "")
+        anchors = item.get("anchors") or ["", ""]
+        if kind in INSTRUMENT_KINDS:
+            low, high, step = INSTRUMENT_KINDS[kind]
+            levels = f"{low}-{high}" + (f" in steps of {step}" if step != 1 else "")
+            labels = f"{low} = {anchors[0]}; {high} = {anchors[1]} (only the ends are labelled)"
+        else:
+            levels = {"likert5": "1-5", "rating10": "1-10", "text": "free text",
+                      "attention": f"1-5; expected {item.get('expected')}"}[kind]
+            labels = LIKERT5 if kind in ("likert5", "attention") else ("1 and 10 as the item text says"
+                                                                        if kind == "rating10" else "")
         kind_name = "attention check" if kind == "attention" else "questionnaire item"
+        if item.get("instrument") in INSTRUMENTS:
+            kind_name = f"{INSTRUMENTS[item['instrument']].title} item {item.get('instrument_item')}"
         yield ["questionnaire.csv", f"answer where item_id = {item['id']}", "text" if kind == "text" else "integer",
                f"{kind_name}: {item['text']}", levels, labels]
+
+
+def _score_rows(questionnaire: list[dict[str, Any]]) -> Iterator[list[Any]]:
+    """One row per standard questionnaire in the study: how scores.csv scores it, and its citation."""
+    used = dict.fromkeys(item["instrument"] for item in questionnaire if item.get("instrument") in INSTRUMENTS)
+    for name in used:
+        instrument = INSTRUMENTS[name]
+        yield ["scores.csv", f"score where instrument = {name}", "number",
+               f"{instrument.title}. Scoring: {instrument.scoring} Source: {instrument.citation}", "", ""]
 
 
 def codebook_rows(ctx: Context, study_id: str) -> list[list[Any]]:
@@ -158,7 +197,7 @@ def codebook_rows(ctx: Context, study_id: str) -> list[list[Any]]:
         for column in EXPORT_COLUMNS[name]:
             kind, meaning, units = MEANINGS[name].get(column) or COMMON[column]
             rows.append([f"{name}.csv", column, kind, meaning, units, ""])
-    return rows + list(_item_rows(study["questionnaire"]))
+    return rows + list(_item_rows(study["questionnaire"])) + list(_score_rows(study["questionnaire"]))
 
 
 # codebook type -> Frictionless Table Schema field type (JSON cells stay text: their shape is in the description)

@@ -13,13 +13,15 @@ from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow
 from ..errors import NotFound
 from .context import Context, aware, iso
+from .attention import SIGNALS
+from .instruments import scores
 from .monitoring import belief_view
 from .outcomes import outcome_of
 from .planning import session_of
 from .state import task_sequence
 from .studies import study_row
 
-EXPORTS = ("participants", "events", "steps", "beliefs", "questionnaire")
+EXPORTS = ("participants", "events", "steps", "beliefs", "questionnaire", "scores")
 
 
 PARTICIPANT_COLUMNS = [
@@ -28,6 +30,7 @@ PARTICIPANT_COLUMNS = [
     "external_session_id", "consent_at", "consent_version", "completion_code", "outcome", "created_at",
     "last_activity_at", "finished_at", "total_seconds", "n_events", "seed",
     "elapsed_seconds",
+    "tab_hidden", "window_blur", "paste",
 ]
 
 
@@ -35,6 +38,7 @@ STEP_COLUMNS = [
     "participant_id", "condition", "task_position", "task_index", "task", "step_kind", "step_index", "shown_at",
     "answered_at", "duration_seconds", "n_objects", "acceptable",
     "learning_step",  # the belief step (beliefs.csv "step") this step's answer led to
+    "shown_fraction", "replays_watched",
 ]
 
 
@@ -61,9 +65,11 @@ QUESTIONNAIRE_COLUMNS = ["participant_id", "condition", "item_id", "item_kind", 
 WITHDRAWN_KEEPS = frozenset({"participant_id", "study_id", "pilot", "stage", "end_reason", "timed_out",
                              "completion_code", "outcome", "finished_at", "n_events"})
 
+SCORE_COLUMNS = ["participant_id", "condition", "instrument", "scale", "score", "n_items", "answered_at"]
+
 
 EXPORT_COLUMNS = {"participants": PARTICIPANT_COLUMNS, "events": EVENT_COLUMNS, "steps": STEP_COLUMNS,
-                  "beliefs": BELIEF_COLUMNS, "questionnaire": QUESTIONNAIRE_COLUMNS}
+                  "beliefs": BELIEF_COLUMNS, "questionnaire": QUESTIONNAIRE_COLUMNS, "scores": SCORE_COLUMNS}
 
 
 # The event that answers each kind of step: its time minus the time the step was shown is the step's duration.
@@ -113,6 +119,12 @@ def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) ->
                        e.app_version, _json(pl)]
         elif name == "beliefs":
             yield from _belief_rows(s, study, include_pilot)
+        elif name == "scores":
+            conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study_id)}
+            for e in repo.iter_study_events(s, study_id=study_id, kind="questionnaire", include_pilot=include_pilot):
+                for instrument, scale, score, n in scores(study.questionnaire, e.payload.get("answers") or {}):
+                    yield [e.participant_id, conditions.get(e.participant_id), instrument, scale, score, n,
+                           iso(e.created_at)]
         else:
             items = {item["id"]: item for item in study.questionnaire}
             conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study_id)}
@@ -133,7 +145,8 @@ def _participant_row(study: StudyRow, p: ParticipantRow, n_events: int) -> list[
            p.task_index, p.prolific_pid, p.external_study_id, p.external_session_id, iso(p.consent_at),
            p.consent_version, p.completion_code, outcome_of(p), iso(p.created_at), iso(p.last_activity_at),
            iso(p.finished_at), _seconds(p.created_at, p.finished_at), n_events, p.seed,
-           _seconds(p.created_at, p.finished_at or p.last_activity_at)]
+           _seconds(p.created_at, p.finished_at or p.last_activity_at),
+           *((p.attention_signals or {}).get(k, 0) for k in SIGNALS)]
     if p.end_reason == "withdrew":
         kept = WITHDRAWN_KEEPS
         row = [value if column in kept else None for column, value in zip(PARTICIPANT_COLUMNS, row, strict=True)]
@@ -166,7 +179,9 @@ def _step_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[An
             yield [p.id, p.condition, task_sequence(study, p).index(e.task_index), e.task_index,
                    study.tasks[e.task_index]["key"], e.step_kind, e.step_index, iso(shown.get(key)),
                    iso(e.created_at), _seconds(shown.get(key), e.created_at), len(objects or []),
-                   acceptable, learning_step]
+                   acceptable, learning_step,
+                   pl.get("shown_fraction") if e.kind == "assessment" else None,
+                   pl.get("replays") if e.kind == "assessment" else None]
             shown[key] = e.created_at
 
 

@@ -29,7 +29,8 @@ def required_objects(task: dict[str, Any]) -> list[str]:
     return [c.first for c in space.clauses_of(space.mask_of_formula(formula)) if c.kind == "F"]
 
 
-def _step_counts(config: core.SessionConfig) -> list[tuple[str, int]]:
+def step_counts(config: core.SessionConfig) -> list[tuple[str, int]]:
+    """The steps of one task session by kind, in order: [(kind, how many)]."""
     return [("practice", config.n_practice), ("demonstration", config.demonstrations_needed),
             ("query", config.queries_needed), ("test", config.n_tests)]
 
@@ -43,7 +44,7 @@ def progress(configs: list[core.SessionConfig], stage: str, task_index: int, ste
              *, speed: float, questionnaire: bool) -> dict[str, Any]:
     """Steps done of all steps in the study, and about how many minutes are left (rounded up)."""
     steps: list[tuple[int, str, int]] = [(i, kind, j) for i, c in enumerate(configs)
-                                         for kind, n in _step_counts(c) for j in range(n)]
+                                         for kind, n in step_counts(c) for j in range(n)]
     order = ("practice", "demonstration", "query", "test")
     if stage in BEFORE_TASKS:
         done = 0

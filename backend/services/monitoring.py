@@ -43,7 +43,7 @@ def participant_row(participant: ParticipantRow, settings: Settings, now: dateti
         "finished_at": iso(p.finished_at), "n_events": p.n_events, "completion_code": p.completion_code,
         "outcome": outcome_of(p), "end_reason": p.end_reason, "attention_failed": p.attention_failed,
         "task_order": p.task_order,
-        "elapsed_seconds": _elapsed(p, now),
+        "elapsed_seconds": _elapsed(p, now), "attention_signals": dict(p.attention_signals or {}),
     }
 
 

@@ -17,6 +17,7 @@ from ..errors import Conflict, InvalidInput, NotAuthenticated, NotFound, ResumeR
 from .context import Context, app_version, commit
 from .outcomes import code_to_show
 from .plain_words import shown
+from .page_settings import consent_digest
 from .state import Action, act, end_participation, require_stage, state_view, task_sequence
 from .studies import ITEM_KINDS
 from .teaching import begin_task, complete
@@ -148,7 +149,8 @@ def give_consent(ctx: Context, token: str, *, agree: bool, consent_version: str,
             raise Conflict(f"consent text version {consent_version!r} is not the current one "
                            f"({a.study.consent_version!r}); reload the page and read it again")
         now = utcnow()
-        a.log("consent", {"agree": agree, "consent_version": consent_version, "at": now.isoformat()})
+        a.log("consent", {"agree": agree, "consent_version": consent_version, "at": now.isoformat(),
+                          "consent_digest": consent_digest(a.study)})
         if agree:
             a.participant.consent_at = now
             a.participant.consent_version = consent_version

@@ -21,6 +21,7 @@ from . import executions, outcomes
 from .context import Context, app_version, aware, iso
 from .runtime import PLAN_AHEAD
 from .guidance import lay_summary, progress, required_objects
+from .page_state import extend_state
 from .planning import ROBOT_TURNS, position_of, session_of
 
 log = logging.getLogger(__name__)
@@ -180,7 +181,7 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
             elif kind in ROBOT_TURNS:
                 ex = ts.execution
                 if ex is not None and (ex["kind"], ex["index"]) == (kind, index):
-                    out["execution"] = shown_execution(ex)
+                    out["execution"] = {**shown_execution(ex), "motion_seconds": executions.duration(ex)}
                 else:
                     out["execution"] = {"kind": kind, "index": index, "status": "not_started",
                                         "events": None, "trace": None}
@@ -207,6 +208,7 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
     position = sequence.index(participant.task_index) if participant.task_index in sequence else 0
     out["progress"] = progress(configs, participant.stage, position, out["step"],
                                speed=study.robot_speed, questionnaire=bool(study.questionnaire))
+    extend_state(out, s, participant, study)  # issue 21's hook: the participant page's extras (page_state.py)
     return out
 
 

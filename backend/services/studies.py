@@ -11,7 +11,9 @@ from ..db.tables import StudyRow, utcnow
 from ..errors import Conflict, InvalidFields, NotFound
 from .context import Context, commit, iso
 from .outcomes import OUTCOME_CODE_FIELDS
-from .study_definition import TaskIn, describe_formula, validate_study
+from .study_definition import ProblemList, TaskIn, describe_formula, validate_study
+from .instruments import INSTRUMENT_KINDS
+from .page_settings import check_page_settings, page_settings_view
 
 TASK_FORMULAS = DINNER_TASK_FORMULAS
 
@@ -36,7 +38,8 @@ ASSIGNMENTS = ("random", "balanced")
 STUDY_STATUSES = ("draft", "open", "closed")
 
 
-ITEM_KINDS = {"likert5": (1, 5), "rating10": (1, 10), "text": None, "attention": (1, 5)}
+ITEM_KINDS = {"likert5": (1, 5), "rating10": (1, 10), "text": None, "attention": (1, 5),
+              **{kind: (low, high) for kind, (low, high, _step) in INSTRUMENT_KINDS.items()}}
 
 
 TASK_ORDERS = ("fixed", "random", "balanced")
@@ -108,7 +111,10 @@ def _study_values(spec: dict[str, Any]) -> dict[str, Any]:
         "criterion": d.criterion,
         "questionnaire": [{"id": q.id, "text": q.text, "kind": q.kind,
                            "required": True if q.kind == "attention" else q.required,
-                           **({"expected": q.expected} if q.kind == "attention" else {})} for q in d.questionnaire],
+                           **({"expected": q.expected} if q.kind == "attention" else {}),
+                           **({"anchors": list(q.anchors)} if q.anchors else {}),
+                           **({"instrument": q.instrument, "instrument_item": q.instrument_item}
+                              if q.instrument else {})} for q in d.questionnaire],
         "consent_text": d.consent_text or DEFAULT_CONSENT,
         "consent_version": d.consent_version or "1",
         "completion_url": d.completion_url,
@@ -120,6 +126,7 @@ def _study_values(spec: dict[str, Any]) -> dict[str, Any]:
         "timeout_minutes": d.timeout_minutes,
         "robot_speed": float(d.robot_speed),
         "places": d.places,
+        **check_page_settings(spec, ProblemList()),  # checked by validate_study already
         "status": "draft",
     }
 
@@ -146,6 +153,7 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "task_order": study.task_order, "quiz": study.quiz,
         "quiz_max_attempts": study.quiz_max_attempts, "timeout_minutes": study.timeout_minutes,
         "robot_speed": study.robot_speed, "places": study.places, "archived_at": iso(study.archived_at),
+        **page_settings_view(study),
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }
 
@@ -269,6 +277,7 @@ def seed_demo_study(ctx: Context) -> dict[str, Any]:
         "conditions": ["active"],
         "questionnaire": DEMO_QUESTIONNAIRE,
         "pilot": True,
+        "allow_anonymous": True,  # the demo is for trying the page: its link needs no Prolific ID
     }
     try:
         create_study(ctx, spec, study_id=DEMO_STUDY_ID)

@@ -20,6 +20,8 @@ from ..core.ltl import to_text
 from ..core.priors import NAMED_PRIORS
 from ..core.puns import CRITERIA
 from ..errors import InvalidFields, InvalidInput
+from .instruments import instrument_fields
+from .page_settings import check_page_settings
 from .plain_words import field_errors, number_ranges, shown
 
 MAX_BALANCED_TASKS = 5  # 5! = 120 orders, each crossed with every condition
@@ -120,10 +122,14 @@ class ItemIn(Definition):
 
     id: str = Field(min_length=1, max_length=64, pattern=ID_PATTERN)
     text: str = Field(max_length=2000)
-    kind: Literal["likert5", "rating10", "text", "attention"]
+    kind: Literal["likert5", "rating10", "text", "attention", "anchored5", "anchored7", "tlx21"]
     required: bool = True
     expected: int | None = Field(None, ge=1, le=5,
                                  description="attention checks (shown as a 1-5 agreement scale): the expected answer")
+    anchors: list[str] | None = Field(None, min_length=2, max_length=2,
+                                      description="anchored scales (standard questionnaires): the low and high labels")
+    instrument: str | None = Field(None, max_length=64, description="the standard questionnaire the item is from")
+    instrument_item: str | None = Field(None, max_length=64, description="the item's key in that questionnaire")
 
 
 class QuizItemIn(Definition):
@@ -177,6 +183,10 @@ class StudyIn(Definition):
     timeout_minutes: int | None = Field(None, ge=1, le=1440)
     robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
                                "than real time (recordings keep real time)")
+    consent_form: dict[str, str | None] | None = Field(None, description="the structured consent form's sections "
+                                                       "(services/page_settings.py: researcher, contact, ethics ...)")
+    allow_anonymous: bool = Field(False, description="a link without PROLIFIC_PID joins without asking for an id")
+    quiz_feedback: bool = Field(True, description="a failed quiz names the wrong answers")
     places: int | None = Field(None, ge=1, le=MAX_PLACES, description="participants the study takes, counted as "
                                "Prolific does (finished plus under way); then joining answers 409 (empty: no limit)")
 
@@ -254,6 +264,24 @@ def _study_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
                              f"({len(tasks)} given): use random instead")
     yield from _task_problems(spec)
     yield from _item_problems(spec)
+    problems = ProblemList()
+    check_page_settings(spec, problems)  # the consent form's sections and the page's flags
+    items = spec.get("questionnaire")
+    for i, item in enumerate(items if isinstance(items, list) else []):
+        if isinstance(item, dict):
+            instrument_fields(item, f"questionnaire.{i}", problems)  # standard questionnaires' fields
+    yield from problems.found
+
+
+class ProblemList:
+    """Collects (field, message) problems from the checks that take a problems object."""
+
+    def __init__(self) -> None:
+        self.found: list[tuple[str, str]] = []
+
+    def add(self, field: str, message: str) -> None:
+        """Note one unacceptable field."""
+        self.found.append((field, message))
 
 
 def validate_study(spec: Any) -> StudyIn:

@@ -139,8 +139,9 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
 
 
 def assess_execution(ctx: Context, token: str, *, acceptable: bool | None, expect: Expect,
-                     key: str | None = None) -> dict[str, Any]:
-    """The participant's verdict on the robot's finished execution (required for queries)."""
+                     key: str | None = None, shown_fraction: float | None = None) -> dict[str, Any]:
+    """The participant's verdict on the robot's finished execution (required for queries), with how much of its
+    recorded motion the page had played (shown_fraction, 0-1; None: not reported)."""
     def run(a: Action) -> None:
         ts, state, step = _teaching(a, expect, ("query", "test"))
         ex = ts.execution
@@ -156,14 +157,16 @@ def assess_execution(ctx: Context, token: str, *, acceptable: bool | None, expec
             raise InvalidInput("a query needs an assessment: acceptable must be true or false")
         new_state = core.observe(state, step.kind, ex["trace"], acceptable)
         a.log("assessment", {"acceptable": acceptable, "events": ex["events"], "trace": ex["trace"],
-                             "p_acceptable": ex.get("p_acceptable")},
+                             "p_acceptable": ex.get("p_acceptable"), "shown_fraction": shown_fraction,
+                             "replays": int(ex.get("replays", 0))},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)
         ts.execution = None
         table = robot_key(a.participant, ts.task_index)
         a.after(lambda: a.ctx.robot.release(table))
         _advance(a, ts, new_state)
 
-    return act(ctx, token, "assess", {"acceptable": acceptable, **expect.__dict__}, key, run)
+    return act(ctx, token, "assess", {"acceptable": acceptable, "shown_fraction": shown_fraction, **expect.__dict__},
+               key, run)
 
 
 def _advance(a: Action, ts: TaskSessionRow, new_state: core.SessionState) -> None:

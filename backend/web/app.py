@@ -12,7 +12,7 @@ from fastapi import APIRouter, FastAPI
 from ..config import Settings
 from ..services import Context, app_version
 from . import errors, exports, pages, participants, studies
-from . import accounts, analysis, dashboard, events, motion, openapi, prolific, viewer
+from . import accounts, analysis, dashboard, events, instruments, motion, openapi, prolific, viewer
 from .audit import AuditWrites
 from .auth import experimenter_checker
 from .deps import require_experimenter
@@ -68,7 +68,7 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.add_middleware(AuditWrites)
     app.add_middleware(AllowedMethods, routes_of=lambda: app)
     for module in (participants, studies, exports, analysis, accounts, prolific, dashboard, motion, viewer, events,
-                   pages):
+                   pages, instruments):
         app.include_router(module.router, responses=_common_errors(module.router))
     app.include_router(studies.formulas, responses=_common_errors(studies.formulas))
     app.include_router(accounts.public, responses=_common_errors(accounts.public))

@@ -72,9 +72,11 @@ def export_zip(study_id: str, ctx: ContextDep, include_pilot: IncludePilot = Fal
 @router.get("/{study_id}/exports/{name}.csv", response_class=StreamingResponse,
             responses={200: {"content": {"text/csv": {"schema": {"type": "string", "format": "binary"}}},
                              "description": "the CSV file"}})
-def export(study_id: str, name: Literal["participants", "events", "steps", "beliefs", "questionnaire", "codebook"],
+def export(study_id: str,
+           name: Literal["participants", "events", "steps", "beliefs", "questionnaire", "scores", "codebook"],
            ctx: ContextDep, include_pilot: IncludePilot = False) -> StreamingResponse:
-    """Download participants, events, steps, beliefs, questionnaire or codebook .csv (columns: codebook.csv)."""
+    """Download participants, events, steps, beliefs, questionnaire, scores (standard questionnaires) or codebook
+    .csv (columns: codebook.csv)."""
     if name == "codebook":
         rows = services.codebook_rows(ctx, study_id)
     else:

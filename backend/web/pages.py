@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+from html import escape
 from typing import Annotated, Literal
+from urllib.parse import quote
 
 from fastapi import APIRouter, Query, Request
 from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Response
@@ -90,6 +92,8 @@ def error_page(status: int, headers: dict[str, str] | None = None, *, resume_ref
 @router.get("/study/{study_id}/join", response_class=RedirectResponse, status_code=303, dependencies=[JoinAllowed],
             include_in_schema=False,
             responses={303: {"description": "to the participant's page /p/{token}"},
+                       200: {"description": "no PROLIFIC_PID and the study does not allow anonymous participants: "
+                             "a page asking for the Prolific ID", "content": {"text/html": {}}},
                        404: {"description": "no such study (an HTML page)", "content": {"text/html": {}}},
                        409: {"description": "the study is not open or full, or this PROLIFIC_PID joined before from "
                              "another browser and session (an HTML page)", "content": {"text/html": {}}},
@@ -97,9 +101,14 @@ def error_page(status: int, headers: dict[str, str] | None = None, *, resume_ref
                              "content": {"text/html": {}}},
                        422: {"description": "a damaged link (an HTML page)", "content": {"text/html": {}}}})
 def join_link(study_id: str, ctx: ContextDep, request: Request, PROLIFIC_PID: ExternalId = None,  # noqa: N803
-              STUDY_ID: ExternalId = None, SESSION_ID: ExternalId = None) -> RedirectResponse:  # noqa: N803
+              STUDY_ID: ExternalId = None, SESSION_ID: ExternalId = None) -> Response:  # noqa: N803
     """The link given to participants: creates the participant (or finds, by PROLIFIC_PID with the same
-    SESSION_ID or browser, the one who joined before) and redirects to their page."""
+    SESSION_ID or browser, the one who joined before) and redirects to their page. Without a PROLIFIC_PID, an open
+    study that does not allow anonymous participants answers with a page asking for the Prolific ID."""
+    if not PROLIFIC_PID:
+        study = services.get_study(ctx, study_id)
+        if study["status"] == "open" and not study["allow_anonymous"]:
+            return ask_prolific_id(study_id, STUDY_ID, SESSION_ID)
     secret = browser_secret(request)
     state, _created = services.join_study(ctx, study_id, prolific_pid=PROLIFIC_PID or None,
                                           external_study_id=STUDY_ID or None, external_session_id=SESSION_ID or None,
@@ -107,6 +116,22 @@ def join_link(study_id: str, ctx: ContextDep, request: Request, PROLIFIC_PID: Ex
     response = RedirectResponse(f"/p/{state['token']}", status_code=303)
     remember_browser(request, response, secret)
     return response
+
+
+def ask_prolific_id(study_id: str, external_study_id: str | None, session_id: str | None) -> HTMLResponse:
+    """The page that asks for the Prolific ID (the study link came without PROLIFIC_PID); it sends the same link
+    with the ID filled in."""
+    hidden = "".join(f'<input type="hidden" name="{name}" value="{escape(value)}">'
+                     for name, value in (("STUDY_ID", external_study_id), ("SESSION_ID", session_id)) if value)
+    body = (f'<p>This link did not include your Prolific ID. Please enter it to take part (it is how the '
+            f'researchers pay you). You find it on your Prolific account page.</p>'
+            f'<form method="get" action="/study/{quote(study_id, safe="")}/join" class="ask-id">'
+            f'<label for="prolific-id">Your Prolific ID</label>'
+            f'<input id="prolific-id" name="PROLIFIC_PID" required autocomplete="off" spellcheck="false" '
+            rf'pattern="[A-Za-z0-9_.:\-]{{1,128}}" maxlength="128" aria-describedby="prolific-id-hint">'
+            f'<p id="prolific-id-hint" class="hint">Letters and digits, as Prolific shows it.</p>{hidden}'
+            f'<div class="buttons"><button class="primary" type="submit">Continue</button></div></form>')
+    return HTMLResponse(PAGE.format(title="Your Prolific ID", body=body + CONTACT), headers=PAGE_HEADERS)
 
 
 @router.get("/p/{token}", response_class=FileResponse, include_in_schema=False,

@@ -8,8 +8,10 @@ from fastapi import APIRouter, Body, Request, Response, status
 from starlette.concurrency import run_in_threadpool
 
 from .. import services
+from ..services import attention
 from .browser import browser_secret, remember_browser
 from .deps import ContextDep, IdempotencyKey, JoinAllowed, TokenDep
+from .page_schemas import SignalIn
 from .schemas import (AssessmentIn, ConsentIn, JoinIn, JoinOut, ParticipantState, PlacementIn,
                       QuestionnaireIn, QuizIn, StepGuard, error_responses)
 
@@ -89,7 +91,7 @@ async def execute(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None,
 async def assess(body: AssessmentIn, ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
     """Judge the robot's finished execution acceptable or not."""
     return await run_in_threadpool(services.assess_execution, ctx, token, acceptable=body.acceptable,
-                                   expect=_expect(body), key=key)
+                                   expect=_expect(body), key=key, shown_fraction=body.shown_fraction)
 
 
 @router.post("/me/questionnaire", response_model=ParticipantState)
@@ -109,3 +111,11 @@ async def quiz(body: QuizIn, ctx: ContextDep, token: TokenDep, key: IdempotencyK
 async def withdraw(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None) -> dict:
     """Withdraw from the study (after consent): the participant's recorded data are deleted."""
     return await run_in_threadpool(services.withdraw, ctx, token, key=key)
+
+
+@router.post("/me/signals", status_code=status.HTTP_204_NO_CONTENT)
+async def signal(body: SignalIn, ctx: ContextDep, token: TokenDep) -> Response:
+    """Attention telemetry (the tab hidden, the window left, text pasted into an answer: counted per participant)
+    or "still_here" (presence: postpones an idle time-out). Nothing the participant sees changes."""
+    await run_in_threadpool(attention.record_signal, ctx, token, kind=body.kind, field=body.field)
+    return Response(status_code=status.HTTP_204_NO_CONTENT)

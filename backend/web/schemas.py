@@ -47,6 +47,8 @@ class PlacementIn(StepGuard):
 
 class AssessmentIn(StepGuard):
     acceptable: bool | None = Field(description="required for queries; optional for test executions")
+    shown_fraction: float | None = Field(None, ge=0, le=1, description="how much of the robot's recorded motion "
+                                         "the page played before the verdict (1: to the end; empty: unknown)")
 
 
 class QuestionnaireIn(Strict):
@@ -63,10 +65,28 @@ class JoinIn(Strict):
     session_id: str | None = Field(None, min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
 
 
+class ConsentSectionOut(BaseModel):
+    """One section of the structured consent form."""
+
+    key: str
+    heading: str
+    text: str
+
+
 class ConsentOut(BaseModel):
     text: str = Field(description="the consent text to show")
     version: str = Field(description="send it back with the answer (POST /me/consent)")
     given_at: str | None = Field(description="when consent was given (ISO 8601), empty before")
+    sections: list[ConsentSectionOut] = Field(default_factory=list, description="the structured consent form")
+    allow_anonymous: bool = Field(False, description="the study lets participants join without a Prolific ID")
+    anonymous: bool = Field(False, description="this participant joined without a Prolific ID")
+
+
+class IdleOut(BaseModel):
+    """How long the participant has been idle, against the study's time-out."""
+
+    timeout_seconds: int
+    idle_seconds: float
 
 
 class StateTaskOut(BaseModel):
@@ -107,6 +127,7 @@ class ExecutionStateOut(BaseModel):
     events: list[str] | None = Field(description="the objects the robot places, in order (once started)")
     trace: list[list[str]] | None = Field(description="the table after each of the robot's placements (finished)")
     replays: int = Field(0, description="how often the participant has watched it again")
+    motion_seconds: float = Field(0.0, description="how long the recorded motion plays (0 before it is worked out)")
 
 
 class QuestionnaireItemOut(BaseModel):
@@ -114,8 +135,9 @@ class QuestionnaireItemOut(BaseModel):
 
     id: str
     text: str
-    kind: Literal["likert5", "rating10", "text", "attention"]
+    kind: Literal["likert5", "rating10", "text", "attention", "anchored5", "anchored7", "tlx21"]
     required: bool
+    anchors: list[str] | None = Field(None, description="anchored scales: the low and high labels")
 
 
 class LearnedOut(BaseModel):
@@ -135,6 +157,7 @@ class CompletionOut(BaseModel):
         description="why the participant left early; empty for those who finished")
     redirect_url: str | None = Field(description="the study's completion URL with the code; empty if it has none")
     learned: list[LearnedOut]
+    return_url: str | None = Field(None, description="after withdrawing: where the participant goes back to")
 
 
 class QuizQuestionOut(BaseModel):
@@ -147,12 +170,16 @@ class QuizStateOut(BaseModel):
     items: list[QuizQuestionOut]
     failed_attempts: int
     attempts_left: int
+    answers: dict[str, int] = Field(default_factory=dict, description="the last attempt's answers, kept")
+    wrong: list[str] | None = Field(None, description="the questions the last attempt answered wrongly (empty: "
+                                    "none yet, or the study hides it)")
 
 
 class ProgressOut(BaseModel):
     done: int = Field(description="steps of the whole study done")
     total: int = Field(description="steps of the whole study")
     minutes_left: int = Field(description="about how many minutes are left (rounded up)")
+    seconds_left: float | None = Field(None, description="the calibrated estimate of the time left, in seconds")
 
 
 class ParticipantState(BaseModel):
@@ -173,6 +200,8 @@ class ParticipantState(BaseModel):
     completion: CompletionOut | None = Field(description="at the end, or after leaving early")
     quiz: QuizStateOut | None = Field(None, description="at the quiz stage")
     progress: ProgressOut | None = Field(None, description="steps of the whole study")
+    idle: IdleOut | None = Field(None, description="with a study time-out: how long the participant has been idle "
+                                 "(the page asks \"are you still there?\" a minute before the time-out)")
     replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
 
 
@@ -197,9 +226,12 @@ class StudyTaskOut(BaseModel):
 class StudyItemOut(BaseModel):
     id: str
     text: str
-    kind: Literal["likert5", "rating10", "text", "attention"]
+    kind: Literal["likert5", "rating10", "text", "attention", "anchored5", "anchored7", "tlx21"]
     required: bool
     expected: int | None = Field(None, description="attention checks: the expected answer (1-5)")
+    anchors: list[str] | None = Field(None, description="anchored scales: the low and high labels")
+    instrument: str | None = Field(None, description="the standard questionnaire the item is from")
+    instrument_item: str | None = Field(None, description="the item's key in that questionnaire")
 
 
 class StudyQuizItemOut(BaseModel):
@@ -241,6 +273,9 @@ class StudyOut(BaseModel):
     robot_speed: float = 1.0
     places: int | None = None
     archived_at: str | None = Field(None, description="when the study was archived (hidden from the list)")
+    consent_form: dict[str, str] = Field(default_factory=dict)
+    allow_anonymous: bool = False
+    quiz_feedback: bool = True
     created_at: str | None
     updated_at: str | None
 
@@ -258,6 +293,8 @@ class ParticipantBaseOut(BaseModel):
     attention_failed: bool = False
     task_order: list[int] | None = None
     elapsed_seconds: float | None = Field(None, description="from joining to finishing, or to now if under way")
+    attention_signals: dict[str, int] = Field(default_factory=dict, description="the page's attention telemetry: "
+                                              "tab_hidden, window_blur, paste counts")
     prolific_pid: str | None
     created_at: str | None
     last_activity_at: str | None

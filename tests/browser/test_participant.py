@@ -55,7 +55,9 @@ def _click_object(page, server, key: str, obj: str) -> float:
     world = _scene(server, key)
     camera = wait_for_camera(lambda: server.ctx.robot.view_clients(key))
     canvas = page.frame_locator("#viewer-frame").locator("canvas").first
-    canvas.scroll_into_view_if_needed()
+    # The 3D view is on screen at the top of the page; scrolling "into view" waits for a frame-stable canvas,
+    # which software WebGL under load may not give within a minute.
+    page.evaluate("() => window.scrollTo(0, 0)")
     box = canvas.bounding_box()
     geoms = np.flatnonzero(world.model.geom_bodyid == world.layout.body[obj])
     point = world.data.geom_xpos[geoms].mean(axis=0) + np.array([0.0, 0.0, 0.01])
@@ -311,7 +313,8 @@ def _check_screen(page, token: str) -> None:
 
 
 def _click_until_busy(page, server, key: str, token: str, obj: str) -> float:
-    """Click an object in the 3D view until it is taken; seconds from that click to the panel showing the robot busy."""
+    """Click an object in the 3D view until it is taken and the panel has shown the robot busy; the seconds from
+    that click to the panel showing it (for the record: the speed target is in benchmarks/bench_participant.py)."""
     headers = {"Authorization": f"Bearer {token}"}
     page.evaluate(WATCH_BUSY)
     clicks = []
@@ -336,9 +339,71 @@ def _fits_on_screen(page, *selectors: str) -> None:
         assert box is not None and box["y"] >= 0 and box["y"] + box["height"] <= height + 1, f"{selector}: {box}"
 
 
+WALK_CONSENT = {"researcher": "A. Researcher", "institution": "Example University", "contact": "lab@example.org",
+                "ethics_approval": "Example University ethics board, ref. 2026-042", "payment": "GBP 2.50",
+                "retention": "Kept for five years, then deleted."}
+WALK_QUIZ = [{"id": "who", "text": "Who places the objects on Table B?", "options": ["I do", "The robot"],
+              "correct": 1},
+             {"id": "order", "text": "Can the order of the objects matter?", "options": ["Yes", "No"], "correct": 0}]
+LOCKED = """() => { const answer = document.querySelector('#acceptable');
+  return Boolean(document.querySelector('#status.busy') && answer && answer.disabled); }"""
+PACE = 0.25  # the walking participant takes this share of the time estimate's allowance on every screen
+
+
+def _dwell(since: float, allowance: float, pace: float) -> None:
+    """Stay on a screen until `pace` x its allowance has passed since it appeared (a participant's steady pace)."""
+    left = since + pace * allowance - time.monotonic()
+    if left > 0:
+        time.sleep(left)
+
+
+def _seconds_left(server, token: str) -> float:
+    state = httpx.get(f"{server.url}/api/v1/me", headers={"Authorization": f"Bearer {token}"}, timeout=60).json()
+    return state["progress"]["seconds_left"]
+
+
+def _quiz_by_keyboard(page) -> None:
+    """Tab onto an option and press the arrow keys: nothing is chosen until Space; then answer 1 wrongly."""
+    first = page.locator('input[name="quiz-who"]').first
+    first.focus()
+    page.keyboard.press("Shift+Tab")
+    page.keyboard.press("Tab")  # Tab lands on the first option of question 1
+    assert page.evaluate("() => document.activeElement.name") == "quiz-who"
+    for key in ("ArrowUp", "ArrowDown", "ArrowUp"):
+        page.keyboard.press(key)
+    assert page.locator("input.choice:checked").count() == 0, "focus or an arrow key chose a quiz answer"
+    page.keyboard.press("Space")  # "I do": wrong
+    assert page.locator('input[name="quiz-who"][value="0"]').is_checked()
+    page.locator('input[name="quiz-order"][value="0"]').check()
+    page.get_by_role("button", name="Check my answers").click()
+    page.wait_for_selector("#quiz-retry")
+
+
+@pytest.fixture
+def walk_server(tmp_path):
+    """The MuJoCo robot at real time, shown 3x faster by the study (robot_speed 3): the time estimate's model."""
+    server = LiveServer(tmp_path, robot="mujoco", robot_speed=1.0).start()
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+@pytest.mark.timeout(1500)  # a steady pace is about two minutes of the walk; software WebGL the rest
 @pytest.mark.parametrize("viewport", [(1366, 768), (390, 844)], ids=["laptop", "phone"])
-def test_a_new_participant_walks_through_every_screen_without_dead_ends(chromium_browser, mujoco_server, viewport):
-    server = mujoco_server
+def test_a_new_participant_walks_through_every_screen_without_dead_ends(chromium_browser, walk_server, viewport):
+    """Every screen a new participant meets, at a laptop's and a phone's size: no dead end, no token, no hidden
+    section shown, axe-core finds no serious or critical violation. On the laptop the participant keeps a steady
+    pace, and the page's time estimate is printed beside the time actually left at every step."""
+    from tableteach.services import time_estimate as te
+    from tableteach.services.guidance import INTRO_SECONDS, QUESTIONNAIRE_SECONDS, THINK_SECONDS
+    from tableteach.services.instruments import instrument_items
+
+    from accessibility import assert_accessible
+
+    server = walk_server
+    laptop = viewport[0] > 600
+    pace = PACE if laptop else 0.0
     exp = ExperimenterClient(server.url, token=EXPERIMENTER_TOKEN)
     try:
         draft = exp.create_study(study_spec(["active"]))["id"]
@@ -348,63 +413,134 @@ def test_a_new_participant_walks_through_every_screen_without_dead_ends(chromium
     assert r.status_code == 409 and r.headers["content-type"].startswith("text/html")
     assert '"detail"' not in r.text and "not open" in r.text
 
-    study_id = _study(server, n_demonstrations=1, n_tests=0, completion_url=f"{server.url}/healthz?cc={{code}}")
+    questionnaire = [*study_spec(["active"])["questionnaire"], *instrument_items("tlx")]
+    study_id = _study(server, n_demonstrations=1, n_tests=0, completion_url=f"{server.url}/healthz?cc={{code}}",
+                      consent_form=WALK_CONSENT, quiz=WALK_QUIZ, quiz_max_attempts=3, robot_speed=3.0,
+                      questionnaire=questionnaire)
     size = {"width": viewport[0], "height": viewport[1]}
     page = chromium_browser.new_page()
     page.set_viewport_size(size)
+    steps: list[tuple[str, float, float]] = []  # (step, when it appeared, the estimate's seconds left then)
     try:
-        page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=walk-{viewport[0]}")
+        # A link without PROLIFIC_PID asks for it.
+        page.goto(f"{server.url}/study/{study_id}/join?STUDY_ID=s1&SESSION_ID=x1")
+        page.get_by_label("Your Prolific ID").fill(f"walk-{viewport[0]}")
+        assert_accessible(page, "Prolific ID")
+        page.get_by_role("button", name="Continue").click()
+        agree = page.get_by_role("button", name="I agree, continue")
+        agree.wait_for()
+        shown = time.monotonic()
         token = _token(page)
-        page.get_by_role("button", name="I agree, continue").wait_for()
         _check_screen(page, token)
-        page.get_by_role("button", name="I agree, continue").click()
-        page.get_by_role("button", name="Start").click()
-        page.get_by_role("button", name="Begin this task").wait_for()
-        _check_screen(page, token)
-        assert page.locator("#study-progress-text").inner_text().startswith("Step 1 of ")
-        page.get_by_role("button", name="Begin this task").click()
+        sheet = page.locator("#consent-sheet").inner_text()
+        assert all(text in sheet for text in WALK_CONSENT.values()) and "Your right to withdraw" in sheet
+        assert "How long it takes" in sheet and "Information sheet version 1" in sheet
+        assert page.get_by_role("button", name="Print or save a copy").is_visible()
+        assert_accessible(page, "consent")
+        _dwell(shown, te.READING_SECONDS["consent"], pace)
+        agree.click()
+        start = page.get_by_role("button", name="Start")
+        start.wait_for()
+        shown = time.monotonic()
+        assert_accessible(page, "instructions")
+        _dwell(shown, te.READING_SECONDS["instructions"], pace)
+        start.click()
 
-        page.wait_for_selector("text=Demonstration 1 of 1" if viewport[0] > 600 else "#finish")
-        key = f"{_participant_id(server, token)}/0"
-        busy_after = _click_until_busy(page, server, key, token, "dinner_plate")
-        assert busy_after < 1.0, f"the panel showed the robot busy {busy_after:.2f} s after the click"
+        page.wait_for_selector("text=A few questions before you start")
+        shown = time.monotonic()
+        _check_screen(page, token)
+        assert_accessible(page, "quiz")
+        _quiz_by_keyboard(page)
+        retry = page.locator("#quiz-retry").inner_text()
+        assert "question 1 was not right" in retry and "2 tries left" in retry
+        assert page.locator('input[name="quiz-order"][value="0"]').is_checked()  # the answers are kept
+        assert page.locator("#quiz-instructions").evaluate("d => d.open")  # the instructions, to read again
+        assert_accessible(page, "quiz after a wrong answer")
+        page.locator('input[name="quiz-who"][value="1"]').check()
+        assert not page.locator('input[name="quiz-who"][value="0"]').is_checked()  # one answer per question
+        _dwell(shown, te.READING_SECONDS["quiz"], pace)
+        page.get_by_role("button", name="Check my answers").click()
+
+        begin = page.get_by_role("button", name="Begin this task")
+        begin.wait_for()
+        steps.append(("demonstration", time.monotonic(), _seconds_left(server, token)))
+        shown = time.monotonic()
+        _check_screen(page, token)
+        picture, button = page.locator("figure.goal").bounding_box(), begin.bounding_box()
+        if not laptop:  # on a phone the goal picture comes before the button
+            assert picture["y"] + picture["height"] <= button["y"]
+        assert page.locator("#study-progress-text").inner_text().startswith("Step 1 of ")
+        assert_accessible(page, "task introduction")
+        _dwell(shown, INTRO_SECONDS, pace)
+        begin.click()
+        shown = time.monotonic()
+
+        page.wait_for_selector("text=Demonstration 1 of 1" if laptop else "#finish")
+        # Clicking in the 3D view is the first test's; here the list of objects, as a keyboard user would.
+        page.evaluate(WATCH_BUSY)
+        page.locator('button.object[data-object="dinner_plate"]').click()
+        page.wait_for_function("() => window.busyAt !== null")  # the panel showed the robot busy
         page.wait_for_selector("#finish:not([disabled])", timeout=60_000)
         _check_screen(page, token)
-        if viewport[0] <= 600:
+        assert_accessible(page, "demonstration")
+        if not laptop:
             _fits_on_screen(page, "#viewer", "#status", "#finish")
-        # One object of five: finishing asks first, and "keep placing" keeps the demonstration open.
+        for obj in ("small_plate", "bowl", "knife"):
+            page.locator(f'button.object[data-object="{obj}"]').click()
+            page.wait_for_selector("#finish:not([disabled])", timeout=60_000)
+        # The fork is missing: finishing asks first, and "keep placing" keeps the demonstration open.
         page.locator("#finish").click()
-        assert "the small plate, the bowl, the knife and the fork" in page.locator("#confirm-finish").inner_text()
+        assert "the fork too" in page.locator("#confirm-finish").inner_text()
         page.locator("#keep-going").click()
         assert page.locator("#confirm-finish").count() == 0 and page.locator("#finish").is_visible()
+        _dwell(shown, THINK_SECONDS["demonstration"], pace)
         page.locator("#finish").click()
         page.locator("#finish-anyway").click()
 
-        page.wait_for_selector("text=Question 1 of 1" if viewport[0] > 600 else "#start")
+        page.wait_for_selector("text=Question 1 of 1" if laptop else "#start")
+        steps.append(("query", time.monotonic(), _seconds_left(server, token)))
+        shown = time.monotonic()
         _check_screen(page, token)
         page.get_by_role("button", name="Watch the robot").click()
-        page.wait_for_selector("#acceptable:not([disabled])", timeout=90_000)
-        page.locator("#watch-again").click()
-        # While the replay runs the panel says so and the answer waits until it has been seen.
-        page.wait_for_function("() => document.querySelector('#status.busy') && "
-                               "document.querySelector('#acceptable').disabled", timeout=10_000)
-        page.wait_for_selector("#acceptable:not([disabled])", timeout=90_000)
+        page.wait_for_selector("#status.busy", timeout=30_000)
+        # The answer waits until the page has played the robot's attempt to its end (shown_fraction 1 below).
+        page.wait_for_selector("#acceptable:not([disabled])", timeout=120_000)
+        outcome = page.locator("#outcome").inner_text()
+        assert "It placed, in this order: 1. the " in outcome and "It did not place: " in outcome
         _check_screen(page, token)
+        assert_accessible(page, "the robot's attempt")
+        if not laptop:  # "watch it again" plays it again, and the answer waits for that too
+            page.locator("#watch-again").click()
+            page.wait_for_function(LOCKED, timeout=10_000)
+            page.wait_for_selector("#acceptable:not([disabled])", timeout=90_000)
+        _dwell(shown, THINK_SECONDS["query"], pace)
         page.locator("#acceptable").click()
 
         page.wait_for_selector("text=A few questions")
+        steps.append(("questionnaire", time.monotonic(), _seconds_left(server, token)))
+        shown = time.monotonic()
         _check_screen(page, token)
         assert page.locator("#acceptable").count() == 0 or not page.locator("#acceptable").is_visible()
+        tlx = page.locator("fieldset.tlx21")
+        assert tlx.count() == 6 and "Very high" in tlx.first.inner_text()
+        assert_accessible(page, "questionnaire")
         for radio in ("q-learned", "q-overall"):
             page.locator(f'input[name="{radio}"][value="4"]').check()
+        for item in instrument_items("tlx"):
+            page.locator(f'input[name="q-{item["id"]}"][value="35"]').check()
+        _dwell(shown, QUESTIONNAIRE_SECONDS, pace)
         page.get_by_role("button", name="Submit answers").click()
         page.wait_for_selector("#completion-code")
+        finished = time.monotonic()
         _check_screen(page, token)
+        assert_accessible(page, "done")
         code = page.locator("#completion-code").inner_text().strip()
+        page.get_by_role("button", name="Copy the code").click()
+        page.wait_for_function("() => document.getElementById('copy-note').textContent !== ''")
         first = page.locator("#countdown").inner_text()
-        time.sleep(1.6)
-        assert page.locator("#countdown").inner_text() != first  # the redirect countdown counts
+        page.wait_for_function("(first) => document.getElementById('countdown')?.textContent !== first", arg=first)
         assert "Task 1:" in page.locator(".summary").inner_text()
+        assert page.locator("#consent-copy summary").is_visible()  # the information sheet, to keep
 
         again = chromium_browser.new_page()
         again.set_viewport_size(size)
@@ -418,11 +554,23 @@ def test_a_new_participant_walks_through_every_screen_without_dead_ends(chromium
     finally:
         page.close()
 
+    # The estimate at each step against the time actually left, reported, not asserted: it is a timing (the
+    # house rule keeps those out of tests), and under heavy load the live view's placements take far longer than
+    # the robot's measured motion. The estimator's accuracy is asserted in tests/test_time_estimate.py.
+    for step, at, estimate in steps:
+        actual = finished - at
+        print(f"time estimate at the {step} step: {estimate:.0f} s left; {actual:.0f} s were "
+              f"({100 * (estimate - actual) / max(actual, 1):+.0f}%)")
     events = _events(server, study_id)
     kinds = [e["kind"] for e in events]
-    assert kinds.count("replay_watched") == 1 and kinds.index("replay_watched") < kinds.index("assessment")
+    assert kinds.count("replay_watched") == (0 if laptop else 1)
+    if not laptop:
+        assert kinds.index("replay_watched") < kinds.index("assessment")
+    assessment = next(e for e in events if e["kind"] == "assessment")
+    assert '"shown_fraction":1' in assessment["payload"]  # the attempt was shown to the end before the verdict
     demo = next(e for e in events if e["kind"] == "demonstration")
-    assert demo["trace"] == '[[],["dinner_plate"]]'
+    assert demo["trace"].startswith('[[],["dinner_plate"],["dinner_plate","small_plate"]')
+    assert events[0]["payload"].count(f"walk-{viewport[0]}") == 1  # the Prolific ID typed in
 
 
 UNCOVERED = """(b) => { const r = b.getBoundingClientRect(); const x = r.x + r.width / 2, y = r.y + r.height / 2;

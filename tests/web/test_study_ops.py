@@ -274,7 +274,7 @@ def test_exports_booleans_durations_codebook_and_zip(app_client) -> None:
         assert ",True," not in text and ",False," not in text
     codebook = rows(app_client, study, "codebook")
     described = {(r["file"], r["column"]) for r in codebook}
-    for name in ("participants", "events", "steps", "beliefs", "questionnaire"):
+    for name in ("participants", "events", "steps", "beliefs", "questionnaire", "scores"):
         header = app_client.get(f"/api/v1/studies/{study}/exports/{name}.csv", headers=EXP).text.splitlines()[0]
         assert {(f"{name}.csv", c) for c in header.split(",")} <= described, name
     assert any(r["column"] == "answer where item_id = learned" and "Strongly agree" in r["likert_labels"]
@@ -283,7 +283,7 @@ def test_exports_booleans_durations_codebook_and_zip(app_client) -> None:
     assert r.status_code == 200 and r.headers["content-type"] == "application/zip"
     archive = zipfile.ZipFile(io.BytesIO(r.content))
     assert sorted(archive.namelist()) == sorted(["participants.csv", "events.csv", "steps.csv", "beliefs.csv",
-                                                 "questionnaire.csv", "codebook.csv", "study.json",
+                                                 "questionnaire.csv", "scores.csv", "codebook.csv", "study.json",
                                                  "datapackage.json"])
     assert json.loads(archive.read("study.json"))["id"] == study
     assert str(done["participant_id"]) in archive.read("participants.csv").decode()
