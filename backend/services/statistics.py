@@ -23,7 +23,7 @@ def study_statistics(ctx: Context, study_id: str, *, include_pilot: bool = False
         study = study_row(s, study_id)
         people = repo.list_participants(s, study_id=study_id, include_pilot=include_pilot)
         started = set(repo.current_task_sessions(s, study_id=study_id))
-        reached = Counter()
+        reached: Counter[str] = Counter()
         for p in people:
             reached["joined"] += 1
             reached["consented"] += p.consent_at is not None or p.end_reason == "withdrew"

@@ -105,7 +105,7 @@ def _task_rules() -> list[dict[str, Any]]:
 class TaskIn(Definition):
     """One task of a study: a named dinner task, a custom formula, or none (ground truth unknown)."""
 
-    model_config = ConfigDict(json_schema_extra={"allOf": _task_rules()})
+    model_config = ConfigDict(json_schema_extra={"allOf": _task_rules()})  # type: ignore[dict-item]
 
     key: Literal["task1", "task2", "custom", "none"]
     ground_truth: str | None = Field(None, max_length=2000, description="custom tasks only: an LTL formula over "
@@ -222,9 +222,9 @@ def _task_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
         elif key == "custom" and not formula:
             yield where, (f"a custom task needs a formula over {', '.join(DINNER_OBJECTS)}, e.g. F(bowl) & "
                           "(!fork U knife)")
-        elif key == "custom" and not re.match(FORMULA_PATTERN, formula):
+        elif key == "custom" and formula is not None and not re.match(FORMULA_PATTERN, formula):
             yield where, f"must be {PATTERN_HINTS['tasks.*.ground_truth']}, got {shown(formula)}"
-        elif key == "custom":
+        elif key == "custom" and formula is not None:
             try:
                 describe_formula(formula)
             except InvalidInput as exc:

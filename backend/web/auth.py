@@ -87,6 +87,7 @@ class SecretChecker:
         if known is not None:
             return known
         quick = hashlib.sha256(secret.encode()).digest()
+        assert self._pbkdf2 is not None  # quick_check answers for every other kind of secret
         iterations, salt, digest = self._pbkdf2
         ok = hmac.compare_digest(hashlib.pbkdf2_hmac("sha256", secret.encode(), salt, iterations), digest)
         if ok:

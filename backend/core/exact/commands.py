@@ -26,7 +26,9 @@ def enumerated_space(domain: Domain, prior: str) -> HypothesisSpace:
 
 
 def _posterior(domain: Domain, prior: str, executions: Sequence[LabelledExecution]) -> ExactPosterior:
-    return posterior_after(domain, prior, [(e.trace, e.acceptable) for e in executions])
+    data: list[tuple[Sequence[Sequence[str]], bool]] = [([sorted(state) for state in e.trace], e.acceptable)
+                                                        for e in executions]
+    return posterior_after(domain, prior, data)
 
 
 def _clause_text(kind: str, first: str, second: str | None) -> str:

@@ -69,7 +69,7 @@ class Vocabulary:
             return Constraint(c.g_ok & ~(1 << i), c.f_ok, c.into, c.g_extra)
         if kind == "F":
             return Constraint(c.g_ok, c.f_ok & ~(1 << i), c.into, c.g_extra)
-        z = self.orderable.index(second)  # type: ignore[arg-type]
+        z = self.orderable.index(second)
         into = tuple(m & ~(1 << i) if j == z else m for j, m in enumerate(c.into))
         return Constraint(c.g_ok, c.f_ok, into, c.g_extra)
 

@@ -79,7 +79,7 @@ def best_execution(
         max_expansions = DEFAULT_EXPANSIONS[objective]
     voc = posterior.prior.vocabulary
     root_p = posterior.p_acceptable(voc.of_events(()))
-    best = ((), root_p, _score(objective, root_p))
+    best: tuple[tuple[str, ...], float, float] = ((), root_p, _score(objective, root_p))
     if objective == "active" and dives > 0:  # ties are many: random dives find a strong incumbent fast
         best = min(best, _random_dives(posterior, propositions, dives, np.random.default_rng(seed)),
                    key=lambda item: item[2])
