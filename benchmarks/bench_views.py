@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="tableteach-views-") as tmp:
         port = free_port()
         env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": TOKEN, "TABLETEACH_ROBOT": "mujoco",
-               "TABLETEACH_DATA_DIR": f"{tmp}/data"}
+               "TABLETEACH_DATA_DIR": f"{tmp}/data", "TABLETEACH_JOINS_PER_ADDRESS": "100000"}
         db = f"sqlite:///{tmp}/views.db"
         from tableteach.db.migrate import upgrade_head
 
