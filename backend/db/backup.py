@@ -143,7 +143,7 @@ def create_backup(database_url: str, data_dir: Path | str, out: Path | str) -> d
     """Write a backup of the database and the data folder to `out` (replaced only once complete); its manifest.
 
     The database is copied first, then the files, so every recording the copied database names is in it."""
-    from ..services import app_version
+    from ..version import app_version
     from .migrate import current_revision
 
     url, data_dir, out = make_url(database_url), Path(data_dir), Path(out)

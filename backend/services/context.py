@@ -6,10 +6,10 @@ import threading
 import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
-from functools import lru_cache
 from typing import Any
 
 from ..config import Settings
+from ..version import app_version as app_version  # re-exported: the services name it so
 from ..db import repository as repo
 from ..db.engine import Database
 from ..errors import Conflict
@@ -18,17 +18,6 @@ from ..recording_store import FileRecordingStore, RecordingStore
 from .notify import LocalNotifier, make_notifier, participant_of_key
 from .planning import Planner
 from .runtime import Runtime
-
-
-@lru_cache(maxsize=1)
-def app_version() -> str:
-    """The installed tableteach version, written into every event."""
-    from importlib.metadata import PackageNotFoundError, version
-
-    try:
-        return version("tableteach")
-    except PackageNotFoundError:
-        return "unknown"
 
 
 TAB_LEASE_SECONDS = 15.0

@@ -239,7 +239,8 @@ def test_experimenter_creates_and_opens_a_study(server_factory: Any, browser_pag
     assert created["tasks"][0]["name"] == "Plate before bowl" and created["n_tests"] == 2
     assert created["robot_speed"] == 1.5
     assert created["questionnaire"] == [
-        {"id": "easy", "text": "Teaching was easy.", "kind": "likert5", "required": True, "expected": None}]
+        {"id": "easy", "text": "Teaching was easy.", "kind": "likert5", "required": True, "expected": None,
+         "anchors": None, "instrument": None, "instrument_item": None}]
     asked: list[str] = []
     page.once("dialog", lambda dialog: (asked.append(dialog.message), dialog.accept()))
     page.click("#open-study")
