@@ -173,6 +173,8 @@ def instrument_fields(item: dict[str, Any], at: str, problems: Any) -> dict[str,
         problems.add(f"{at}.anchors", f"a {item.get('kind')} item needs its two end labels, e.g. "
                      "['Strongly disagree', 'Strongly agree']")
     name, key = item.get("instrument"), item.get("instrument_item")
+    if not isinstance(name, (str, type(None))) or not isinstance(key, (str, type(None))):
+        return out  # not text: the study model names the field
     if name is not None or key is not None:
         known = {k for k, _t, _a in INSTRUMENTS[name].items} if name in INSTRUMENTS else set()
         if name not in INSTRUMENTS:

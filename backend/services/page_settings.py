@@ -8,6 +8,8 @@ import hashlib
 import json
 from typing import Any, Protocol
 
+from pydantic import BaseModel, ConfigDict, Field
+
 # field -> (heading on the consent page, longest text accepted)
 CONSENT_FORM_FIELDS: dict[str, tuple[str, int]] = {
     "researcher": ("Who is running this study", 200),
@@ -30,6 +32,23 @@ CONSENT_DEFAULTS = {
                   "withdrew.",
 }
 SETTINGS = ("consent_form", "allow_anonymous", "quiz_feedback")
+
+
+class ConsentFormIn(BaseModel):
+    """The consent page's structured sections; empty ones are left out (what is recorded and the right to
+    withdraw have defaults that are true of every study on this server)."""
+
+    model_config = ConfigDict(extra="forbid", strict=True)
+
+    researcher: str | None = Field(None, max_length=200, description="the researcher(s) running the study")
+    institution: str | None = Field(None, max_length=200)
+    contact: str | None = Field(None, max_length=500, description="how to reach the researchers (e-mail)")
+    ethics_approval: str | None = Field(None, max_length=300, description="the approving board and reference")
+    duration: str | None = Field(None, max_length=200, description="empty: the page's own estimate")
+    payment: str | None = Field(None, max_length=300)
+    recorded: str | None = Field(None, max_length=2000, description="what is recorded")
+    retention: str | None = Field(None, max_length=1000, description="how long the data are kept, and where")
+    withdrawal: str | None = Field(None, max_length=1000, description="the right to withdraw")
 
 
 class _Problems(Protocol):

@@ -21,7 +21,7 @@ from ..core.priors import NAMED_PRIORS
 from ..core.puns import CRITERIA
 from ..errors import InvalidFields, InvalidInput
 from .instruments import instrument_fields
-from .page_settings import check_page_settings
+from .page_settings import ConsentFormIn, check_page_settings
 from .plain_words import field_errors, number_ranges, shown
 
 MAX_BALANCED_TASKS = 5  # 5! = 120 orders, each crossed with every condition
@@ -183,8 +183,7 @@ class StudyIn(Definition):
     timeout_minutes: int | None = Field(None, ge=1, le=1440)
     robot_speed: float = Field(1.0, ge=1.0, le=3.0, description="the robot's motion is shown this many times faster "
                                "than real time (recordings keep real time)")
-    consent_form: dict[str, str | None] | None = Field(None, description="the structured consent form's sections "
-                                                       "(services/page_settings.py: researcher, contact, ethics ...)")
+    consent_form: ConsentFormIn | None = Field(None, description="the structured consent form's sections")
     allow_anonymous: bool = Field(False, description="a link without PROLIFIC_PID joins without asking for an id")
     quiz_feedback: bool = Field(True, description="a failed quiz names the wrong answers")
     places: int | None = Field(None, ge=1, le=MAX_PLACES, description="participants the study takes, counted as "

@@ -77,7 +77,7 @@ def issue_token(name: str, body: NewToken, ctx: ContextDep) -> dict[str, Any]:
     return {"token": token, **record}
 
 
-@router.get("/accounts/tokens/all")
+@router.get("/accounts/all-tokens")
 def list_tokens(ctx: ContextDep) -> list[dict[str, Any]]:
     """Every API token's record, never the token (owner only)."""
     return accounts.tokens(ctx)

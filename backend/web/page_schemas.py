@@ -4,24 +4,11 @@ from __future__ import annotations
 
 from typing import Literal
 
+from ..services.page_settings import ConsentFormIn as _ConsentFormIn
 from pydantic import BaseModel, ConfigDict, Field
 
 
-class ConsentFormIn(BaseModel):
-    """The consent page's structured sections; empty ones are left out (what is recorded and the right to
-    withdraw have defaults that are true of every study on this server)."""
-
-    model_config = ConfigDict(extra="forbid", strict=True)
-
-    researcher: str | None = Field(None, max_length=200, description="the researcher(s) running the study")
-    institution: str | None = Field(None, max_length=200)
-    contact: str | None = Field(None, max_length=500, description="how to reach the researchers (e-mail)")
-    ethics_approval: str | None = Field(None, max_length=300, description="the approving board and reference")
-    duration: str | None = Field(None, max_length=200, description="empty: the page's own estimate")
-    payment: str | None = Field(None, max_length=300)
-    recorded: str | None = Field(None, max_length=2000, description="what is recorded")
-    retention: str | None = Field(None, max_length=1000, description="how long the data are kept, and where")
-    withdrawal: str | None = Field(None, max_length=1000, description="the right to withdraw")
+ConsentFormIn = _ConsentFormIn  # the study definition's model (services/page_settings.py)
 
 
 class SignalIn(BaseModel):

@@ -3,6 +3,8 @@ and the server then serves them; `serve` refuses a database that is not at head,
 
 from __future__ import annotations
 
+from tests.states import comparable
+
 import os
 import sqlite3
 import subprocess
@@ -81,14 +83,6 @@ def head_data(tmp_path_factory: pytest.TempPathFactory) -> tuple[Rows, dict[str,
     return rows, served
 
 
-def _comparable(state: dict[str, Any]) -> dict[str, Any]:
-    """The state without what depends on the time it is read at (idleness, the estimate of the time left)."""
-    out = {k: v for k, v in state.items() if k not in ("last_activity_at", "idle")}
-    if out.get("progress"):
-        out["progress"] = {k: v for k, v in out["progress"].items() if k not in ("seconds_left", "minutes_left")}
-    return out
-
-
 @pytest.mark.parametrize("revision", known_revisions()[:-1])
 def test_a_database_at_an_earlier_revision_with_data_migrates_to_head_and_is_served(
     revision: str, head_data: tuple[Rows, dict[str, Any]], tmp_path: Path
@@ -114,7 +108,7 @@ def test_a_database_at_an_earlier_revision_with_data_migrates_to_head_and_is_ser
         for token, state in served["states"].items():
             answer = client.get("/api/v1/me", headers=bearer(token))
             assert answer.status_code == 200, answer.text
-            assert _comparable(answer.json()) == _comparable(state)
+            assert comparable(answer.json()) == comparable(state)
         study = client.get(f"/api/v1/studies/{served['study_id']}", headers=EXP)
         assert study.status_code == 200 and study.json()["id"] == served["study_id"]
         for name in ("participants", "steps"):

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 import shutil
 import socket
+import ssl
 import subprocess
 import sys
 import threading
@@ -27,9 +28,13 @@ from .helpers import EXP, bearer, join, make_study
 WAIT = 30.0  # generous: the suite runs beside CPU hogs
 
 
-def _connect(port: int) -> socket.socket:
+def _connect(port: int, tls: bool = False) -> socket.socket:
     sock = socket.create_connection(("127.0.0.1", port), timeout=WAIT)
     sock.settimeout(WAIT)
+    if tls:  # the bundled nginx terminates TLS with the test's self-signed certificate
+        context = ssl.create_default_context()
+        context.check_hostname, context.verify_mode = False, ssl.CERT_NONE
+        sock = context.wrap_socket(sock, server_hostname="127.0.0.1")
     return sock
 
 
@@ -39,8 +44,8 @@ def _read_until_closed(sock: socket.socket) -> bytes:
     try:
         while chunk := sock.recv(4096):
             got += chunk
-    except ConnectionResetError:
-        pass  # nginx's reset_timedout_connection
+    except (ConnectionResetError, ssl.SSLError):
+        pass  # nginx's reset_timedout_connection (over TLS an abrupt close is an SSL error)
     return got
 
 
@@ -121,13 +126,13 @@ def test_the_bundled_nginx_closes_slow_headers_and_stalled_bodies(server_factory
         deadline = time.monotonic() + WAIT
         while True:
             try:
-                if httpx.get(f"http://127.0.0.1:{port}/healthz", timeout=1).status_code == 200:
+                if httpx.get(f"https://127.0.0.1:{port}/healthz", timeout=5, verify=False).status_code == 200:
                     break
             except httpx.TransportError:
                 pass
             assert time.monotonic() < deadline, "nginx did not answer"
             time.sleep(0.1)
-        with _connect(port) as partial, _connect(port) as stalled:
+        with _connect(port, tls=True) as partial, _connect(port, tls=True) as stalled:
             partial.sendall(b"GET /healthz HTTP/1.1\r\nHost: x\r\nX-Slow: ")
             stalled.sendall(b"POST /api/v1/studies/x/join HTTP/1.1\r\nHost: x\r\nContent-Length: 100\r\n\r\n{")
             _read_until_closed(partial)

@@ -61,7 +61,7 @@ def test_tokens_expire_and_can_be_revoked_and_accounts_disabled(app_client) -> N
     token = _person(app_client, "ada", "experimenter")
     h = bearer(token)
     assert app_client.get("/api/v1/studies", headers=h).status_code == 200
-    records = app_client.get("/api/v1/accounts/tokens/all", headers=EXP).json()
+    records = app_client.get("/api/v1/accounts/all-tokens", headers=EXP).json()
     assert [r["name"] for r in records] == ["ada"] and "token" not in records[0]
     assert app_client.delete(f"/api/v1/accounts/tokens/{records[0]['id']}", headers=EXP).status_code == 200
     gone = app_client.get("/api/v1/studies", headers=h)

@@ -4,6 +4,8 @@ the exports and the recordings as before. On SQLite, and on PostgreSQL where Deb
 
 from __future__ import annotations
 
+from tests.states import comparable
+
 import hashlib
 import json
 import os
@@ -42,9 +44,7 @@ def _served(server: ServerProcess, study_id: str, tokens: list[str], finished: s
     motion files the page plays), and the exports."""
     out: dict[str, Any] = {"exports": _exports(server.url, study_id), "states": {}, "recordings": {}}
     for token in tokens:
-        state = ParticipantClient(server.url, token=token).state()
-        state.pop("last_activity_at", None)
-        out["states"][token] = state
+        out["states"][token] = comparable(ParticipantClient(server.url, token=token).state())
     for name in ("query-0", "test-0"):
         motion = httpx.get(f"{server.url}/p/{finished}/motion/task-0/{name}.viser", timeout=60)
         assert motion.status_code == 200 and len(motion.content) > 10_000, (name, motion.status_code)

@@ -120,7 +120,7 @@ def test_teach_and_export_commands_on_the_two_task_demo_study(tmp_path: Path) ->
         assert json.loads(out.stdout)["rows"]["participants"] == 1
         assert sorted(p.name for p in (tmp_path / "csv").iterdir()) == [
             "beliefs.csv", "codebook.csv", "datapackage.json", "events.csv", "participants.csv", "questionnaire.csv",
-            "steps.csv", "study.json"]
+            "scores.csv", "steps.csv", "study.json"]
 
         bad = subprocess.run(cli + ["export", "--server", server.url, "--study", "demo", "--token", "wrong-token",
                                     "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=60)

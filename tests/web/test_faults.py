@@ -4,6 +4,7 @@ it works an execution out; each participant finishes with only their page's own 
 from __future__ import annotations
 
 import importlib.util
+import sys
 from pathlib import Path
 
 import pytest
@@ -16,6 +17,7 @@ def test_participants_finish_after_kills_during_placements_and_executions(capsys
     spec = importlib.util.spec_from_file_location("faults", FAULTS)
     assert spec is not None and spec.loader is not None
     faults = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = faults  # its dataclasses look their module up
     spec.loader.exec_module(faults)
     status = faults.main(["--seeds", "2", "--faults", "kill_placing,kill_working_out"])
     out = capsys.readouterr().out

@@ -75,6 +75,9 @@ def test_every_outcome_has_its_own_code_in_the_redirect_the_export_and_the_dashb
     token, _ = to_teaching(app_client, study)
     _passed_quiz(app_client, token)
     _idle(app_client, token, 6)
+    from tableteach.services.timeouts import sweep_timeouts
+
+    sweep_timeouts(app_client.ctx)  # the runtime's periodic sweep (reads never screen anyone out)
     shown["timeout"] = app_client.get("/api/v1/me", headers=bearer(token)).json()
     token, _ = to_teaching(app_client, study)
     shown["withdrew"] = app_client.post("/api/v1/me/withdraw", headers=bearer(token)).json()
@@ -107,7 +110,8 @@ def test_an_old_single_screened_out_code_covers_the_outcomes_without_their_own(a
     token, _ = to_teaching(app_client, study)
     _passed_quiz(app_client, token)
     withdrawn = app_client.post("/api/v1/me/withdraw", headers=bearer(token)).json()
-    assert withdrawn["completion"] == {"code": None, "reason": "withdrew", "redirect_url": None, "learned": []}
+    assert withdrawn["completion"] == {"code": None, "reason": "withdrew", "redirect_url": None, "learned": [],
+                                       "return_url": "https://app.prolific.com/"}
     spec = app_client.get(f"/api/v1/studies/{study}", headers=EXP).json()
     assert spec["screened_out_code"] == "OLD2" and spec["timed_out_code"] is None
 

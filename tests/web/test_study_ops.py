@@ -63,7 +63,8 @@ def test_withdrawal_deletes_the_data_and_is_visible_only_as_a_withdrawal(app_cli
     keep = finish(app_client, study)
     r = app_client.post("/api/v1/me/withdraw", headers=bearer(token))
     assert r.status_code == 200 and r.json()["stage"] == "withdrawn"
-    assert r.json()["completion"] == {"code": None, "reason": "withdrew", "redirect_url": None, "learned": []}
+    assert r.json()["completion"] == {"code": None, "reason": "withdrew", "redirect_url": None, "learned": [],
+                                      "return_url": None}
     again = app_client.post("/api/v1/me/withdraw", headers=bearer(token))
     assert again.status_code == 200 and again.json()["n_events"] == r.json()["n_events"]
     pid = r.json()["participant_id"]
@@ -304,7 +305,7 @@ def test_idle_past_the_timeout_is_screened_out_and_kept(app_client) -> None:
     assert r.status_code == 409 and r.json()["state"]["stage"] == "screened_out"
     state = app_client.get("/api/v1/me", headers=bearer(token)).json()
     assert state["completion"] == {"code": "LATE", "reason": "timeout", "learned": [],
-                                   "redirect_url": URL.replace("{code}", "LATE")}
+                                   "redirect_url": URL.replace("{code}", "LATE"), "return_url": None}
     people = {int(p["participant_id"]): p for p in rows(app_client, study, "participants")}
     assert [p["timed_out"] for p in people.values()] == ["true", "false"]  # an export only reads
     from tableteach.services.timeouts import sweep_timeouts

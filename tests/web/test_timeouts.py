@@ -3,6 +3,8 @@ activity, and the experimenter can restore a screened-out participant or help a 
 
 from __future__ import annotations
 
+from tableteach.services.timeouts import sweep_timeouts
+
 from datetime import timedelta
 from typing import Any
 
@@ -47,6 +49,7 @@ def test_lowering_the_limit_counts_only_idleness_after_the_change(app_client) ->
     assert app_client.get("/api/v1/me", headers=bearer(token)).json()["stage"] == "task"
     _age(app_client, token, 30)
     _age_change(app_client, study, 11)  # now idle 11 minutes since the change
+    sweep_timeouts(app_client.ctx)  # the runtime's periodic sweep (reads never screen anyone out)
     assert _people(app_client, study)[pid]["stage"] == "screened_out"
 
 
@@ -56,6 +59,7 @@ def test_a_time_out_finishes_at_the_last_activity_and_restoring_continues_where_
     pid = state["participant_id"]
     assert app_client.post("/api/v1/me/placements", json={"object": "bowl"}, headers=bearer(token)).status_code == 200
     _age(app_client, token, 20)
+    sweep_timeouts(app_client.ctx)  # the runtime's periodic sweep (reads never screen anyone out)
     before = _people(app_client, study)[pid]
     assert before["stage"] == "screened_out" and before["outcome"] == "timeout"
     assert before["finished_at"] == before["last_activity_at"]
