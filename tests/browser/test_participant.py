@@ -41,11 +41,13 @@ def _participant_id(server, token: str) -> int:
 
 
 def _scene(server, key: str, timeout: float = 60.0):
+    robot = server.ctx.robot
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
-        world = server.ctx.robot.scene(key)
-        if world is not None and server.ctx.robot.view_clients(key):
-            return world
+        if robot.view_clients(key):
+            if robot.scene(key) is None:  # an untouched table has no simulation yet: the same start, rebuilt
+                robot.restore(key, [])
+            return robot.scene(key)
         time.sleep(0.1)
     raise TimeoutError(f"no browser shows table {key}: expected the page to open its view")
 

@@ -124,7 +124,7 @@ def test_teach_and_export_commands_on_the_two_task_demo_study(tmp_path: Path) ->
 
         bad = subprocess.run(cli + ["export", "--server", server.url, "--study", "demo", "--token", "wrong-token",
                                     "--out", str(tmp_path / "x")], capture_output=True, text=True, timeout=60)
-        assert bad.returncode == 2 and "wrong experimenter token" in bad.stderr
+        assert bad.returncode == 2 and "wrong, expired or revoked experimenter token" in bad.stderr
         bad = subprocess.run(cli + ["teach", "--server", server.url, "--study", "demo", "--ground-truth", "F(spoon)"],
                              capture_output=True, text=True, timeout=60)
         assert bad.returncode == 2 and "spoon" in bad.stderr and len(bad.stderr.strip().splitlines()) == 1
