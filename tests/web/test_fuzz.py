@@ -24,7 +24,7 @@ def _app():  # type: ignore[no-untyped-def]
     url = f"sqlite:///{folder}/fuzz.db"
     upgrade_head(url)
     app = create_app(Settings(database_url=url, experimenter_token=EXPERIMENTER_TOKEN, robot="trace",
-                              joins_per_address=1_000_000))
+                              joins_per_address=100_000))
     # Schemathesis sends many invalid keys on purpose: the wrong-key limit (tested in test_abuse_limits.py) would
     # answer 429 where the schema promises 401.
     from tableteach.web.limits import AddressLimiter
