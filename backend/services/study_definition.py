@@ -20,7 +20,7 @@ from ..core.ltl import to_text
 from ..core.priors import NAMED_PRIORS
 from ..core.puns import CRITERIA
 from ..errors import InvalidFields, InvalidInput
-from .instruments import instrument_fields
+from .instruments import INSTRUMENTS, instrument_fields
 from .page_settings import ConsentFormIn, check_page_settings
 from .plain_words import field_errors, number_ranges, shown
 
@@ -126,9 +126,10 @@ class ItemIn(Definition):
     required: bool = True
     expected: int | None = Field(None, ge=1, le=5,
                                  description="attention checks (shown as a 1-5 agreement scale): the expected answer")
-    anchors: list[str] | None = Field(None, min_length=2, max_length=2,
-                                      description="anchored scales (standard questionnaires): the low and high labels")
-    instrument: str | None = Field(None, max_length=64, description="the standard questionnaire the item is from")
+    anchors: list[Annotated[str, Field(min_length=1, max_length=60)]] | None = Field(
+        None, min_length=2, max_length=2, description="anchored scales (standard questionnaires): the end labels")
+    instrument: Literal[tuple(INSTRUMENTS)] | None = Field(  # type: ignore[valid-type]
+        None, description="the standard questionnaire the item is from (GET /api/v1/instruments)")
     instrument_item: str | None = Field(None, max_length=64, description="the item's key in that questionnaire")
 
 
