@@ -19,7 +19,7 @@ nothing the first run stored: labels and plans are stored only where they are mi
 from __future__ import annotations
 
 import logging
-from typing import Any
+from typing import Any, TypeGuard
 
 from ..db import jobs as job_rows
 from ..db import repository as repo
@@ -29,7 +29,7 @@ from . import executions, placements
 from .context import Context
 from .planning import ROBOT_TURNS, position_of
 from .runtime import FINISH_EXECUTION, PLAN_AHEAD, SETTLE, WORK_OUT, Handler
-from .state import Action, current_task, sync_execution
+from .state import Action, current_task, sync_execution, table_key
 
 log = logging.getLogger(__name__)
 
@@ -88,8 +88,7 @@ def work_out(ctx: Context, job: job_rows.ClaimedJob) -> None:
             return
         participant, _study, ts = found
         ex = ts.execution
-        if ex is None or ex["status"] != "running" or ex.get("plan") is not None \
-                or (ex["kind"], ex["index"], ex["events"]) != want:
+        if not _awaits_plan(ex, want):
             return
         rid = RecordingId(participant.uid, ts.task_index, ex["kind"], ex["index"])
         speed = executions.speed_of(ex)
@@ -102,8 +101,7 @@ def work_out(ctx: Context, job: job_rows.ClaimedJob) -> None:
             return
         participant, study, ts = found
         ex = ts.execution
-        if ex is None or ex["status"] != "running" or ex.get("plan") is not None \
-                or (ex["kind"], ex["index"], ex["events"]) != want:
+        if not _awaits_plan(ex, want):
             return
         ts.execution = stored = {**ex, "plan": planned, "started_at": utcnow().isoformat()}
         a = Action(ctx, s, participant, study, None, None)
@@ -113,6 +111,12 @@ def work_out(ctx: Context, job: job_rows.ClaimedJob) -> None:
     ctx.notifier.publish(job.participant_id)  # the page shows the robot moving, caption and all
     executions.announce(ctx, job.participant_id, stored)
     ctx.runtime.wake()
+
+
+def _awaits_plan(ex: dict[str, Any] | None, want: tuple[Any, Any, Any]) -> TypeGuard[dict[str, Any]]:
+    """Whether the stored execution is the one the job is for, still running and still without a plan."""
+    return (ex is not None and ex["status"] == "running" and ex.get("plan") is None
+            and (ex["kind"], ex["index"], ex["events"]) == want)
 
 
 def finish_execution(ctx: Context, job: job_rows.ClaimedJob) -> None:
@@ -155,8 +159,8 @@ def plan_ahead(ctx: Context, job: job_rows.ClaimedJob) -> None:
 
 
 def robot_key_of(job: job_rows.ClaimedJob) -> str:
-    """The robot table key of a job's participant and task (as services.state.robot_key)."""
-    return f"{job.participant_id}/{job.task_index}"
+    """The robot table key of a job's participant and task (the format of services.state.robot_key)."""
+    return table_key(job.participant_id, job.task_index)
 
 
 HANDLERS: dict[str, Handler] = {SETTLE: settle, WORK_OUT: work_out, FINISH_EXECUTION: finish_execution,

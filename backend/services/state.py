@@ -72,8 +72,14 @@ def mark_timed_out(s: Any, participant: ParticipantRow) -> bool:
     return True
 
 
+def table_key(participant_id: int, task_index: int | None) -> str:
+    """The robot's table key of a participant's task: "<participant id>/<task index>" (notify.participant_of_key)."""
+    return f"{participant_id}/{task_index}"
+
+
 def robot_key(participant: ParticipantRow, task_index: int) -> str:
-    return f"{participant.id}/{task_index}"
+    """The robot's table key of this participant's task."""
+    return table_key(participant.id, task_index)
 
 
 def apply_speed(ctx: Context, key: str, study: StudyRow) -> None:
