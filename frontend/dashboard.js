@@ -238,9 +238,9 @@ async function studiesView() {
       h("a", { class: "button", href: "#/audit", id: "audit-link" }, "Audit log"),
       h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study"))),
     studies.length
-      ? h("table", { class: "data", id: "studies" },
+      ? h("div", { class: "table-scroll" }, h("table", { class: "data", id: "studies" },
         h("thead", {}, h("tr", {}, ["Name", "Id", "Status", "Tasks", "Conditions", "Created"].map((c) => h("th", {}, c)))),
-        h("tbody", {}, rows))
+        h("tbody", {}, rows)))
       : h("p", { class: "card muted" }, "No studies yet. Create one to get a participant link."));
 }
 
