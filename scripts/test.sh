@@ -21,23 +21,10 @@ if [ ${#missing[@]} -gt 0 ]; then
   fi
 fi
 ensure_venv test
-# axe-core (package.json) for the dashboard's accessibility checks in the browser tests.
+# axe-core (package.json, pinned by its lock file) for the accessibility checks of the browser tests.
 if command -v npm >/dev/null && [ ! -f "$ROOT/node_modules/axe-core/axe.min.js" ]; then
   echo "==> npm ci (axe-core for the browser tests)"
   (cd "$ROOT" && npm ci --no-audit --no-fund --silent) || echo "warning: npm ci failed; the axe-core checks will be skipped" >&2
-fi
-
-# axe-core (the accessibility engine the browser tests run in each participant screen), from the npm registry into
-# .axe/ beside the checkout; the tests find it there (or at TABLETEACH_AXE_JS).
-AXE_VERSION=4.14.1
-if [ ! -f "$ROOT/.axe/node_modules/axe-core/axe.min.js" ] || \
-   ! grep -q "\"version\": \"$AXE_VERSION\"" "$ROOT/.axe/node_modules/axe-core/package.json"; then
-  if command -v npm >/dev/null; then
-    echo "==> installing axe-core $AXE_VERSION (npm) into .axe/"
-    npm install --prefix "$ROOT/.axe" --no-save --no-audit --no-fund --silent "axe-core@$AXE_VERSION"
-  else
-    echo "warning: npm not found: the accessibility checks of the browser tests will be skipped" >&2
-  fi
 fi
 
 cd "$ROOT"

@@ -1,4 +1,4 @@
-"""axe-core in the browser tests: the engine from the npm registry (scripts/test.sh installs it into .axe/),
+"""axe-core in the browser tests: the engine from the npm registry (package.json; scripts/test.sh runs npm ci),
 evaluated in the page under test, which reports every serious or critical violation of a screen."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-AXE_JS = Path(os.environ.get("TABLETEACH_AXE_JS") or ROOT / ".axe" / "node_modules" / "axe-core" / "axe.min.js")
+AXE_JS = Path(os.environ.get("TABLETEACH_AXE_JS") or ROOT / "node_modules" / "axe-core" / "axe.min.js")
 SERIOUS = ("serious", "critical")
 # viser's client in the 3D view's frame is not this project's page (and axe would need injecting into it).
 RUN = """async () => {
@@ -24,7 +24,7 @@ RUN = """async () => {
 def axe_source() -> str:
     """axe.min.js; a skip (a failure with CI=true) when it is not installed."""
     if not AXE_JS.is_file():
-        message = f"{AXE_JS} not found: run scripts/test.sh (it installs axe-core with npm into .axe/)"
+        message = f"{AXE_JS} not found: run scripts/test.sh (it installs axe-core with npm ci)"
         if os.environ.get("CI", "").lower() == "true":
             pytest.fail(message)
         pytest.skip(message)

@@ -13,6 +13,7 @@ import pytest
 sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 
 from tableteach.client import ExperimenterClient, run_teacher  # noqa: E402
+from tests.browser.accessibility import axe_source  # noqa: E402
 from tests.browser.conftest import LiveServer  # noqa: E402
 from tests.web.conftest import EXPERIMENTER_TOKEN, study_spec  # noqa: E402
 
@@ -28,13 +29,12 @@ def trace_server(tmp_path: Path) -> Any:
         server.stop()
 
 
-AXE = Path(__file__).resolve().parents[2] / "node_modules" / "axe-core" / "axe.min.js"
 OUT = Path(__file__).resolve().parents[2] / "out" / "a11y"
 
 
 def axe_problems(page: Any) -> list[str]:
     """Serious and critical axe-core violations of the page as it is now, one line each."""
-    page.evaluate(AXE.read_text())  # through the DevTools protocol: the page's CSP allows no inline script
+    page.evaluate(axe_source())  # through the DevTools protocol: the page's CSP allows no inline script
     result = page.evaluate("""async () => {
         const r = await axe.run(document, {runOnly: {type: 'tag', values: ['wcag2a', 'wcag2aa', 'wcag21aa']}});
         return r.violations.filter(v => v.impact === 'serious' || v.impact === 'critical')
@@ -45,7 +45,6 @@ def axe_problems(page: Any) -> list[str]:
 
 
 @pytest.mark.browser
-@pytest.mark.skipif(not AXE.exists(), reason="axe-core is not installed (npm ci at the repository root)")
 def test_every_dashboard_screen_passes_axe_core(trace_server: Any, browser_page: Any) -> None:
     server = trace_server
     exp = ExperimenterClient(server.url, token=EXPERIMENTER_TOKEN)
