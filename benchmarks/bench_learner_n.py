@@ -1,6 +1,6 @@
 """One participant's whole learner compute at n objects: 2 demonstrations, 3 active queries and updates, 3 test plans.
 
-    .venv/bin/python benchmarks/bench_learner_n.py [--sizes 5,8,10] [--repeats 3]
+    .venv/bin/python benchmarks/bench_learner_n.py [--sizes 5,8,10] [--repeats 3] [--summaries]
 
 The teacher knows a fixed task over the first objects (the first three placed in order, the last object
 never placed) and labels each query by it. At every size the exact factorised learner does the work
@@ -81,14 +81,48 @@ def enumerated_participant(names: tuple[str, ...]) -> float:
     return time.perf_counter() - started
 
 
+def summaries(names: tuple[str, ...]) -> str:
+    """Seconds of the MAP formula, the expected similarity and 100 exact samples after five labelled executions."""
+    from backend.core.clauses import Clause
+    from backend.core.exact.mapping import map_formula
+    from backend.core.exact.sampling import sample_formulas
+    from backend.core.exact.similarity import expected_similarity
+
+    domain = objects_domain(names)
+    a, b, c, d = names[:4]
+    data = [((a, b, c), True), ((a, d, b, c), True), ((b, a, c), False), ((a, b, c, names[-1]), False),
+            ((a, b, c, d), True)]
+    post = posterior_after(domain, PRIOR, [(domain.trace_of(e), ok) for e, ok in data])
+    truth = [Clause("F", a), Clause("F", b), Clause("F", c), Clause("U", a, b), Clause("U", b, c),
+             Clause("G", names[-1])]
+    out = []
+    for label, work in (("MAP", lambda: map_formula(post)), ("similarity", lambda: expected_similarity(post, truth)),
+                        ("100 samples", lambda: sample_formulas(post, 100, np.random.default_rng(0)))):
+        started = time.perf_counter()
+        work()
+        out.append(f"{label} {time.perf_counter() - started:.2f} s")
+    return f"n={n_of(names)} after 5 labelled executions: " + "; ".join(out)
+
+
+def n_of(names: tuple[str, ...]) -> int:
+    """The number of objects."""
+    return len(names)
+
+
 def main() -> None:
     """Print the median per size and the peak memory."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", default="5,8,10")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--summaries", action="store_true",
+                        help="also time the MAP formula, the expected similarity and 100 samples")
     args = parser.parse_args()
     for n in (int(s) for s in args.sizes.split(",")):
         names = tuple(f"o{i}" for i in range(n))
+        if args.summaries:
+            print("  " + summaries(names), flush=True)
+        if args.repeats <= 0:
+            continue
         times = []
         for r in range(args.repeats):
             seconds, log = factorised_participant(names)

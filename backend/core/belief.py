@@ -95,7 +95,8 @@ class Belief:
     def observe_mask(self, sat_mask: int, acceptable: bool, flip_rate: float = 0.0) -> "Belief":
         """The posterior after one execution with the given satisfied-clause mask and label."""
         ll = log_likelihood(self.space, sat_mask, acceptable, check_flip_rate(flip_rate))
-        return Belief(self.space, self.log_weights + ll)
+        ll += self.log_weights  # in place: the same sums as log_weights + ll, one array fewer
+        return Belief(self.space, ll)
 
     def observe(self, trace: Trace, acceptable: bool, flip_rate: float = 0.0) -> "Belief":
         """The posterior after one labelled execution (a verdict flipped w.p. ``flip_rate`` if > 0)."""
@@ -114,15 +115,19 @@ class Belief:
     @cached_property
     def probs(self) -> np.ndarray:
         """Normalised posterior probabilities."""
-        shifted = np.exp(self.log_weights - self.log_weights.max())
-        return shifted / shifted.sum()
+        shifted = self.log_weights - self.log_weights.max()
+        np.exp(shifted, out=shifted)  # in place: the same values, without two more arrays of the space's size
+        shifted /= shifted.sum()
+        return shifted
 
     @cached_property
     def entropy(self) -> float:
         """Shannon entropy in nats over canonical clause sets."""
         p = self.probs
-        nz = p[p > 0]
-        return float(-(nz * np.log(nz)).sum())
+        nz = p if p.min() > 0 else p[p > 0]  # the same terms in the same order; copied only if some are 0
+        terms = np.log(nz)
+        terms *= nz
+        return float(-terms.sum())
 
     @cached_property
     def map_index(self) -> int:
@@ -155,7 +160,9 @@ class Belief:
         """Expected similarity E_P[L(phi, truth)] (by default the authors' IoU of token sets)."""
         from .metrics import similarities
 
-        return float(self.probs @ similarities(self.space, truth_mask, metric))
+        # einsum, not @: BLAS splits a long dot product over threads, whose spinning took as much CPU as the
+        # rest of a sweep, and whose rounding depended on the machine's thread count.
+        return float(np.einsum("i,i->", self.probs, similarities(self.space, truth_mask, metric)))
 
     def map_similarity(self, truth_mask: int, metric: str = "authors") -> float:
         """Similarity of the MAP formula to the truth."""

@@ -213,20 +213,24 @@ class ClauseSpace:
 
     def describe(self, mask: int) -> str:
         """A plain-English description, e.g. 'place the dinner plate before the bowl; never place the fork'."""
-        clauses = self.clauses_of(mask)
-        if not clauses:
-            return "anything is acceptable"
-        phrases: list[str] = []
-        orders = [c for c in clauses if c.kind == "U"]
-        required = [c.first for c in clauses if c.kind == "F"]
-        forbidden = [c.first for c in clauses if c.kind == "G"]
-        if required:
-            phrases.append(f"{self.verb} " + join_words([f"the {humanize(p)}" for p in required]))
-        for c in orders:
-            phrases.append(f"{self.verb} the {humanize(c.first)} before the {humanize(c.second or '')}")
-        if forbidden:
-            phrases.append(f"never {self.verb} " + join_words([f"the {humanize(p)}" for p in forbidden]))
-        return "; ".join(phrases)
+        return describe_clauses(self.clauses_of(mask), self.verb)
+
+
+def describe_clauses(clauses: Sequence[Clause], verb: str = "place") -> str:
+    """Plain English for a list of template clauses (``ClauseSpace.describe`` without a mask)."""
+    if not clauses:
+        return "anything is acceptable"
+    phrases: list[str] = []
+    orders = [c for c in clauses if c.kind == "U"]
+    required = [c.first for c in clauses if c.kind == "F"]
+    forbidden = [c.first for c in clauses if c.kind == "G"]
+    if required:
+        phrases.append(f"{verb} " + join_words([f"the {humanize(p)}" for p in required]))
+    for c in orders:
+        phrases.append(f"{verb} the {humanize(c.first)} before the {humanize(c.second or '')}")
+    if forbidden:
+        phrases.append(f"never {verb} " + join_words([f"the {humanize(p)}" for p in forbidden]))
+    return "; ".join(phrases)
 
 
 def join_words(items: Sequence[str]) -> str:

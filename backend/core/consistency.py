@@ -18,6 +18,9 @@ from .ltl_semantics import Trace
 
 Labelled = tuple[Trace, bool, bool]  # (trace, acceptable, is_verdict)
 
+# A verdict the learner gave less than this probability flags its task (docs/experiments.md, "Teacher consistency").
+FLAG_BELOW = 0.01
+
 
 def verdict_probabilities(prior: Belief, data: Sequence[Labelled], flip_rate: float = 0.0) -> list[float | None]:
     """Per item: the probability the belief just before it gave to its verdict (None for a demonstration)."""
@@ -62,3 +65,8 @@ def auc(positives: Sequence[float], negatives: Sequence[float]) -> float:
         raise ValueError("the AUC needs at least one score in each group")
     above = (pos[:, None] > neg[None, :]).sum() + 0.5 * (pos[:, None] == neg[None, :]).sum()
     return float(above / (pos.size * neg.size))
+
+
+def flagged(probabilities: Sequence[float | None]) -> bool:
+    """Whether some verdict's probability was below FLAG_BELOW."""
+    return any(p is not None and p < FLAG_BELOW for p in probabilities)

@@ -23,6 +23,7 @@ _EXPANDED: "weakref.WeakKeyDictionary[HypothesisSpace, dict[str, np.ndarray]]" =
 _SIMILARITIES: "weakref.WeakKeyDictionary[HypothesisSpace, dict[tuple[str, int], np.ndarray]]" = (
     weakref.WeakKeyDictionary()
 )
+_SIZES: "weakref.WeakKeyDictionary[HypothesisSpace, dict[str, np.ndarray]]" = weakref.WeakKeyDictionary()
 _MAX_TRUTHS_PER_SPACE = 8
 
 
@@ -85,9 +86,22 @@ def similarities(hypotheses: HypothesisSpace, truth_mask: int, metric: str = DEF
     return cached
 
 
+def _expanded_sizes(hypotheses: HypothesisSpace, metric: str) -> np.ndarray:
+    """Token-set size of every hypothesis (cached per space and metric)."""
+    per_space = _SIZES.setdefault(hypotheses, {})
+    cached = per_space.get(metric)
+    if cached is None:
+        cached = popcount(expanded_masks(hypotheses, metric))
+        cached.flags.writeable = False
+        per_space[metric] = cached
+    return cached
+
+
 def _similarities(hypotheses: HypothesisSpace, truth_mask: int, metric: str) -> np.ndarray:
     expanded = expanded_masks(hypotheses, metric)
-    truth = np.uint64(hypotheses.domain.clause_space.expanded_mask(truth_mask, metric))
-    inter = popcount(expanded & truth)
-    union = popcount(expanded | truth)
+    truth_tokens = hypotheses.domain.clause_space.expanded_mask(truth_mask, metric)
+    inter = popcount(expanded & np.uint64(truth_tokens))
+    union = _expanded_sizes(hypotheses, metric) + (bin(truth_tokens).count("1") - inter)  # |a| + |b| - |a & b|
+    if truth_tokens:  # the union is never empty
+        return inter / union
     return np.where(union == 0, 1.0, inter / np.maximum(union, 1))

@@ -109,6 +109,8 @@ def test_objects_past_five_use_the_factorised_learner(tmp_path):
     probs = [m["p"] for m in result["marginals"]]
     assert len(probs) == 4 and probs == sorted(probs, reverse=True)
     assert result["marginals"][0]["clause"] in ("F(plate)", "F(bowl)")  # both demonstrations placed them
+    assert result["map"] == result["support"][0]["formula"] and "F(plate)" in result["map"]
+    assert 0 < result["support"][0]["p"] <= 1 and result["n_hypotheses"] is None
     plan = json.loads(tableteach("plan", "--objects", SIX_OBJECTS, "--data", str(path)).stdout)
     assert plan["execution"][0] == "plate" and set(plan) == {"execution", "p_acceptable", "seconds"}
 

@@ -102,10 +102,67 @@ def _times_element(phi: np.ndarray, poly: np.ndarray) -> np.ndarray:
     return out
 
 
-def _block_orders(prior: ChainPrior, cons: Sequence[Constraint]) -> np.ndarray:
+@dataclass(frozen=True)
+class TokenWeights:
+    """Per constraint, a weight for each similarity token a formula may have (see ``similarity.py``).
+
+    ``g[M, i]`` for 'G i', ``f[M, i]`` for the item token 'i' (F(i), or i ordered before something),
+    ``pair[M, a, z]`` for the order (a, z), kept only when z is not forbidden; ``g_extra[M, j]``.
+    """
+
+    g: np.ndarray
+    f: np.ndarray
+    pair: np.ndarray
+    g_extra: np.ndarray
+
+
+def _element_parts(prior: ChainPrior, cons: Sequence[Constraint], tokens: TokenWeights) -> np.ndarray:
+    """parts[role, with_g, M, n, 3]: the element polynomials split by whether G(i) is chosen, token-weighted
+    (role 0: last of its block, 1: an earlier element, whose item token is always there)."""
+    voc = prior.vocabulary
+    n, M = voc.n, len(cons)
+    qf, qg = prior.p_eventually, prior.p_forbid
+    forb = voc.forbiddable_orderable
+    parts = np.zeros((2, 2, M, n, 3), dtype=tokens.f.dtype)
+    for i in range(n):
+        f_ok = np.array([c.f_ok >> i & 1 for c in cons], dtype=bool)
+        g_ok = np.array([c.g_ok >> i & 1 for c in cons], dtype=bool) & bool(forb >> i & 1)
+        for role in (0, 1):
+            for f_on in (False, True):
+                for g_on in (False, True):
+                    if prior.require_satisfiable and g_on and (f_on or role == 1):
+                        continue
+                    w = (qf if f_on else 1 - qf) * ((qg if g_on else 1 - qg) if forb >> i & 1 else 1.0)
+                    ok = np.ones(M, dtype=bool)
+                    if f_on:
+                        ok &= f_ok
+                    if g_on:
+                        ok &= g_ok
+                    tok = np.ones(M, dtype=tokens.f.dtype)
+                    if f_on or role == 1:
+                        tok = tok * tokens.f[:, i]
+                    if g_on:
+                        tok = tok * tokens.g[:, i]
+                    parts[role, int(g_on), :, i, int(f_on) + int(g_on)] += np.where(ok, w * tok, 0.0)
+    return parts
+
+
+def _pair_products(tokens: TokenWeights, n: int, z: int) -> np.ndarray:
+    """PF[M, A] = product over a in A of the order token (a, z)'s weight."""
+    out = np.ones((tokens.pair.shape[0], 1 << n), dtype=tokens.pair.dtype)
+    idx = np.arange(1 << n)
+    for a in range(n):
+        has = idx[(idx >> a) & 1 == 1]
+        out[:, has] = out[:, has ^ (1 << a)] * tokens.pair[:, a, z][:, None]
+    return out
+
+
+def _block_orders(prior: ChainPrior, cons: Sequence[Constraint], tokens: TokenWeights | None = None) -> np.ndarray:
     """ord[M, B, :2|B|+1]: each block's valid orders, weighted by its elements' F/G polynomials."""
     n = prior.vocabulary.n
     M = len(cons)
+    if tokens is not None:
+        return _token_block_orders(prior, cons, tokens)
     last, ante = _element_polys(prior, cons)
     into = np.array([c.into for c in cons], dtype=np.int64)  # (M, n)
     L = 2 * n + 1
@@ -125,6 +182,31 @@ def _block_orders(prior: ChainPrior, cons: Sequence[Constraint]) -> np.ndarray:
     return block
 
 
+def _token_block_orders(prior: ChainPrior, cons: Sequence[Constraint], tokens: TokenWeights) -> np.ndarray:
+    """As ``_block_orders``, every formula weighted by its similarity tokens' weights."""
+    n, M = prior.vocabulary.n, len(cons)
+    parts = _element_parts(prior, cons, tokens)
+    into = np.array([c.into for c in cons], dtype=np.int64)
+    L = 2 * n + 1
+    dtype = tokens.f.dtype
+    chain = np.zeros((M, 1 << n, L), dtype=dtype)
+    block = np.zeros((M, 1 << n, L), dtype=dtype)
+    chain[:, 0, 0] = 1.0
+    pf = [_pair_products(tokens, n, z) for z in range(n)]
+    for r in range(1, n + 1):
+        sets = _levels(n)[r]
+        for z in range(n):
+            has = sets[(sets >> z) & 1 == 1]
+            rest = has ^ (1 << z)
+            valid = (rest[None, :] & ~into[:, z][:, None]) == 0
+            src = chain[:, rest, :] * valid[:, :, None]
+            paired = src * pf[z][:, rest][:, :, None]  # z not forbidden: its orders are tokens
+            for target, role in ((chain, 1), (block, 0)):
+                target[:, has, :] += _times_element(parts[role, 0, :, z, :], paired)
+                target[:, has, :] += _times_element(parts[role, 1, :, z, :], src)
+    return block
+
+
 def prior_mass_by_count(prior: ChainPrior, cons: Sequence[Constraint], chunk: int = 64) -> np.ndarray:
     """Z[M, N]: prior mass (unnormalised if conditioned) of the formulas within each constraint with N clauses."""
     out = [_mass(prior, list(cons[i:i + chunk]), False)[:, 0] for i in range(0, len(cons), chunk)]
@@ -138,20 +220,26 @@ def prior_mass_by_blocks(prior: ChainPrior, cons: Sequence[Constraint], chunk: i
     return np.concatenate(out, axis=0) if out else np.zeros((0, n + 1, prior.degree + 1))
 
 
-def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool) -> np.ndarray:
+def prior_mass_with_tokens(prior: ChainPrior, cons: Sequence[Constraint], tokens: TokenWeights) -> np.ndarray:
+    """Z[M, N]: as ``prior_mass_by_count``, every formula also weighted by its similarity tokens' weights."""
+    return _mass(prior, list(cons), False, tokens)[:, 0]
+
+
+def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool, tokens: TokenWeights | None = None) -> np.ndarray:
     voc = prior.vocabulary
     n, M, p = voc.n, len(cons), prior.p_new_block
     L = n * (n - 1) // 2 + 2 * n + 1
     K, step = (n + 1, 1) if by_blocks else (1, 0)
-    block = _block_orders(prior, cons)
+    block = _block_orders(prior, cons, tokens)
+    dtype = block.dtype
     full = (1 << n) - 1
     if p <= 0.0:  # one chain over everything
-        total = np.zeros((M, K, L))
+        total = np.zeros((M, K, L), dtype=dtype)
         shift = n * (n - 1) // 2
         total[:, step, shift:shift + 2 * n + 1] = block[:, full, :]
         total /= math.factorial(n)
     else:
-        seq = np.zeros((M, 1 << n, K, L))
+        seq = np.zeros((M, 1 << n, K, L), dtype=dtype)
         seq[:, 0, 0, 0] = 1.0
         used = (block != 0).any(axis=(0, 2))  # blocks with a valid order under some constraint of the batch
         position = np.zeros(1 << n, dtype=np.int64)
@@ -159,7 +247,7 @@ def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool) -> np.ndar
             position[level] = np.arange(level.size)
         for s in range(1, n + 1):
             sets = _levels(n)[s]
-            level_sum = np.zeros((M, sets.size, K, L))  # every S of size s is written by this level only
+            level_sum = np.zeros((M, sets.size, K, L), dtype=dtype)  # every S of size s is written by this level only
             for b in range(1, s + 1):
                 S, B, R, per = _pairs(n, s, b)
                 shift = b * (b - 1) // 2
@@ -179,7 +267,7 @@ def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool) -> np.ndar
                     S_k, B_k, R_k = S[keep], B[keep], R[keep]
                     rest = seq[:, R_k, :K - step, :deg]
                     blk = block[:, B_k, :2 * b + 1] * weight
-                    acc = np.zeros((M, keep.size, K - step, deg + 2 * b))
+                    acc = np.zeros((M, keep.size, K - step, deg + 2 * b), dtype=dtype)
                     for d in range(2 * b + 1):
                         acc[..., d:d + deg] += blk[:, :, None, d:d + 1] * rest
                     starts = np.flatnonzero(np.r_[True, S_k[1:] != S_k[:-1]])
@@ -187,17 +275,20 @@ def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool) -> np.ndar
                     level_sum[:, position[S_k[starts]], step:, shift:shift + acc.shape[-1]] += summed
             seq[:, sets] = level_sum
         total = seq[:, full] / (p * math.factorial(n))
-    return _times_extra(prior, cons, total)
+    return _times_extra(prior, cons, total, tokens)
 
 
-def _times_extra(prior: ChainPrior, cons: list[Constraint], poly: np.ndarray) -> np.ndarray:
+def _times_extra(prior: ChainPrior, cons: list[Constraint], poly: np.ndarray,
+                 tokens: TokenWeights | None = None) -> np.ndarray:
     """Multiply in the independent G clauses of the forbiddable-only propositions (last axis: N)."""
     m = len(prior.vocabulary.extra)
-    out = np.zeros((*poly.shape[:-1], prior.degree + 1))
+    out = np.zeros((*poly.shape[:-1], prior.degree + 1), dtype=poly.dtype)
     out[..., :poly.shape[-1]] = poly
     qg = prior.p_forbid
     for j in range(m):
         ok = np.array([c.g_extra >> j & 1 for c in cons], dtype=float)[:, None, None]
+        if tokens is not None:
+            ok = ok * tokens.g_extra[:, j][:, None, None]
         shifted = np.zeros_like(out)
         shifted[..., 1:] = out[..., :-1]
         out = out * (1 - qg) + shifted * qg * ok

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import time
 from functools import lru_cache
 from typing import Any, Sequence
@@ -9,9 +10,11 @@ from typing import Any, Sequence
 import numpy as np
 
 from ..belief import LabelledExecution
+from ..clauses import describe_clauses
 from ..domain import Domain
 from ..hypotheses import HypothesisSpace, build_space
 from .learner import posterior_after
+from .mapping import map_formula
 from .posterior import ExactPosterior
 from .search import best_execution
 
@@ -40,14 +43,18 @@ def _clause_text(kind: str, first: str, second: str | None) -> str:
 
 
 def infer(domain: Domain, prior: str, executions: Sequence[LabelledExecution], top: int) -> dict[str, Any]:
-    """The posterior's entropy and clause marginals (the support is not listed: it has up to 6e13 formulas)."""
+    """The posterior's entropy, clause marginals and MAP formula; the support lists the MAP only (the
+    whole support has up to 6e13 formulas, and the exact learner finds the top one, not the top k)."""
     started = time.perf_counter()
     post = _posterior(domain, prior, executions)
     marginals = sorted(post.marginals().items(), key=lambda kv: -kv[1])
+    best = map_formula(post)
+    clauses = best.formula.clauses(post.prior)
     return {
-        "support": [],
+        "support": [{"formula": best.text, "clauses": [c.text() for c in clauses],
+                     "p": math.exp(best.log_probability), "description": describe_clauses(clauses, domain.verb)}],
         "entropy": post.entropy(),
-        "map": None,
+        "map": best.text,
         "n_hypotheses": None,
         "marginals": [{"clause": _clause_text(*key), "p": p} for key, p in marginals[: max(top, 0)]],
         "learner": "exact-factorised",
