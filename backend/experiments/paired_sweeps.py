@@ -7,6 +7,8 @@ run by run, is a paired difference (e.g. information-gain queries minus uncertai
 
 from __future__ import annotations
 
+import textwrap
+
 from pathlib import Path
 from typing import Sequence
 
@@ -71,8 +73,9 @@ def plot_paired_sweeps(table: Sequence[dict[str, object]], label: str, title: st
         ax.errorbar(x, y, yerr=err, marker="o", capsize=3, color=COLORS[protocol], label=LABELS[protocol])
     ax.axhline(0.0, color="black", linewidth=0.8)
     ax.set_xlabel("n_query")
-    ax.set_ylabel(f"similarity, {label}\n(paired mean, 95% CI)")
+    ax.set_ylabel("\n".join(textwrap.wrap(f"final similarity, {label}", 45)) + "\n(paired mean, 95% CI)",
+                  fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend()
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(textwrap.fill(title, 80), fontsize=9)
     return _save(fig, stem)

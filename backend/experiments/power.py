@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import sys
+import textwrap
 from pathlib import Path
 from typing import Any, Sequence
 
@@ -114,5 +115,5 @@ def plot_power(table: Sequence[dict[str, Any]], title: str, stem: Path) -> list[
     ax.set_xlabel("participants (paired: each does both protocols' data)")
     ax.set_ylabel("power at alpha 0.05 (95% CI)")
     ax.grid(alpha=0.3)
-    fig.suptitle(title, fontsize=9)
+    fig.suptitle(textwrap.fill(title, 75), fontsize=9)
     return _save(fig, stem)

@@ -32,7 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--n-query", type=int, default=3, help="queries (Batch: extra demonstrations) (default 3)")
     p.add_argument("--prior", default="chains-2020", help="the learner's prior (default chains-2020, the study's)")
     p.add_argument("--demo-mode", choices=list(DEMO_MODES), default=DEFAULT_DEMO_MODE)
-    p.add_argument("--flip-rate", type=float, default=0.0, help="the teacher's verdict-flip probability, [0, 0.5)")
+    p.add_argument("--flip-rate", type=float, default=None,
+                   help="the teacher's verdict-flip probability, [0, 0.5) (default 0: a perfect teacher)")
     p.add_argument("--pilot", metavar="EXPORT", default=None,
                    help="fit the flip rate from a pilot's exports.zip (or folder) instead of --flip-rate")
     p.add_argument("--alpha", type=float, default=0.05)
@@ -49,12 +50,14 @@ def cmd_power(args: argparse.Namespace) -> dict[str, Any]:
     from .sweep import run_sweep
 
     sizes = parse_sizes(args.participants)
-    check_flip_rate(args.flip_rate, "--flip-rate")
+    if args.pilot is not None and args.flip_rate is not None:
+        raise ValueError("give the teacher's flip rate (--flip-rate) or a pilot to fit it from (--pilot), not both")
+    check_flip_rate(0.0 if args.flip_rate is None else args.flip_rate, "--flip-rate")
     if not 0.0 < args.alpha < 1.0:
         raise ValueError(f"--alpha must lie in (0, 1), got {args.alpha}")
     if args.studies < 10:
         raise ValueError(f"--studies must be at least 10, got {args.studies}")
-    flip, fitted_from = args.flip_rate, None
+    flip, fitted_from = args.flip_rate or 0.0, None
     if args.pilot is not None:
         flip, verdicts = fitted_flip_rate(args.pilot)
         fitted_from = {"pilot": Path(args.pilot).name, "query_verdicts": verdicts}

@@ -1,10 +1,11 @@
 """Counterfactual replay of a study's export: each participant's recorded demonstrations and verdicts run
 again through other learner configurations, step by step, next to what the study's robot learned.
 
-A learner spec is ``study`` (the study's own prior, the authors' learner) or comma-separated settings
+A learner spec is ``study`` (the study's own prior and flip rate) or comma-separated settings
 ``prior=NAME``, ``flip=P`` (the noise-aware learner, P in [0, 0.5)) and ``data=demonstrations`` (the
-demonstrations only, as Batch would learn from the same session). The recorded queries stay what they
-were: a replay changes what is learned from the data, not which executions were shown.
+demonstrations only, as Batch would learn from the same session); core.counterfactual says more. The
+recorded queries stay what they were: a replay changes what is learned from the data, not which
+executions were shown.
 """
 
 from __future__ import annotations
@@ -18,55 +19,18 @@ from pathlib import Path
 from typing import Any, Iterator, Sequence
 
 from ..core.belief import check_flip_rate
+from ..core.counterfactual import DATA_CHOICES, LearnerSpec, parse_learners, step_views
 from ..core.domain import get_domain
-from ..core.priors import NAMED_PRIORS
-from ..core.session import Trace, Verdicts, noisy_belief_after
+from ..core.session import Trace, Verdicts
+
+__all__ = ["DATA_CHOICES", "LearnerSpec", "parse_learners", "read_export", "replay", "sessions", "study_flip_rate"]
 
 # The beliefs.csv columns a replay reads; an export without them was written by another version.
 BELIEF_COLUMNS = ("participant_id", "condition", "task_index", "task", "step", "record_kind", "acceptable", "trace",
                   "entropy", "map_formula", "similarity")
 STUDY_KEYS = ("prior", "tasks")
-DATA_CHOICES = ("all", "demonstrations")
 REPLAY_COLUMNS = ("participant_id", "condition", "task_index", "task", "step", "record_kind", "learner",
                   "similarity", "entropy", "map_formula", "study_similarity", "study_entropy", "study_map_formula")
-
-
-@dataclass(frozen=True)
-class LearnerSpec:
-    """One learner configuration to replay: its name as given, prior (None: the study's), flip rate, data."""
-
-    name: str
-    prior: str | None = None
-    flip_rate: float = 0.0
-    data: str = "all"
-
-    @staticmethod
-    def parse(text: str) -> "LearnerSpec":
-        """Parse ``study`` or ``prior=NAME,flip=P,data=all|demonstrations``; ValueError names what is wrong."""
-        text = text.strip()
-        if text == "study":
-            return LearnerSpec("study")
-        fields: dict[str, Any] = {}
-        for part in text.split(","):
-            key, eq, value = (s.strip() for s in part.partition("="))
-            if not eq or key not in ("prior", "flip", "data") or key in fields:
-                raise ValueError(f"unknown learner {text!r}: {part!r} is not a setting; expected 'study' or "
-                                 "settings prior=NAME, flip=P, data=all|demonstrations separated by commas")
-            fields[key] = value
-        if "prior" in fields and fields["prior"] not in NAMED_PRIORS:
-            raise ValueError(f"unknown learner {text!r}: prior {fields['prior']!r}; expected one of "
-                             f"{', '.join(NAMED_PRIORS)}")
-        if "data" in fields and fields["data"] not in DATA_CHOICES:
-            raise ValueError(f"unknown learner {text!r}: data {fields['data']!r}; expected one of "
-                             f"{', '.join(DATA_CHOICES)}")
-        flip = 0.0
-        if "flip" in fields:
-            try:
-                flip = float(fields["flip"])
-            except ValueError:
-                raise ValueError(f"unknown learner {text!r}: flip {fields['flip']!r} is not a number") from None
-            check_flip_rate(flip, f"learner {text!r}: flip")
-        return LearnerSpec(text, fields.get("prior"), flip, fields.get("data", "all"))
 
 
 @dataclass(frozen=True)
@@ -111,7 +75,16 @@ def read_export(path: Path | str) -> Export:
         what += [f"beliefs.csv lacks the columns {', '.join(columns)}"] if columns else []
         raise ValueError(f"{path} is an export from another version ({'; '.join(what)}); expected one written by "
                          "this version of tableteach")
+    try:
+        check_flip_rate(study.get("flip_rate", 0.0), "study.json flip_rate")
+    except ValueError as exc:
+        raise ValueError(f"{path} is not an export of this version: {exc}") from None
     return Export(study, list(reader))
+
+
+def study_flip_rate(export: Export) -> float:
+    """The study's own learner's flip rate (0, the authors' learner, in exports of studies without one)."""
+    return float(export.study.get("flip_rate", 0.0))
 
 
 def sessions(export: Export) -> dict[tuple[str, int], list[dict[str, str]]]:
@@ -144,18 +117,14 @@ def replay(export: Export, learners: Sequence[LearnerSpec]) -> Iterator[dict[str
         truth = None if truth_text is None else domain.clause_space.mask_of_formula(truth_text)
         data = _verdicts(rows)
         for learner in learners:
-            prior = learner.prior or export.study["prior"]
+            views = step_views(learner, data, truth, task="dinner", study_prior=export.study["prior"],
+                               study_flip_rate=study_flip_rate(export))
             for row in rows:
-                step = int(row["step"])
-                # a demonstrations-only learner keeps its belief through the query steps
-                seen = tuple(d for d in data[:step] if learner.data == "all" or not d[2])
-                belief = noisy_belief_after("dinner", prior, learner.flip_rate, seen)
+                view = views[int(row["step"])]
                 yield {"participant_id": participant, "condition": row["condition"], "task_index": task_index,
-                       "task": row["task"], "step": step, "record_kind": row["record_kind"],
-                       "learner": learner.name,
-                       "similarity": None if truth is None else belief.similarity(truth),
-                       "entropy": belief.entropy + 0.0,
-                       "map_formula": domain.clause_space.text_of(belief.map_mask),
+                       "task": row["task"], "step": view["step"], "record_kind": row["record_kind"],
+                       "learner": learner.name, "similarity": view["similarity"], "entropy": view["entropy"],
+                       "map_formula": view["map_formula"],
                        "study_similarity": row["similarity"], "study_entropy": row["entropy"],
                        "study_map_formula": row["map_formula"]}
 

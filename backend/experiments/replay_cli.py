@@ -12,11 +12,12 @@ from typing import Any, Sequence
 import numpy as np
 from tqdm import tqdm
 
-from .replay import REPLAY_COLUMNS, LearnerSpec, read_export, replay, sessions
+from .replay import REPLAY_COLUMNS, parse_learners, read_export, replay, sessions
 
 DESCRIPTION = """Replay every participant's recorded demonstrations and verdicts through each learner SPEC:
-'study' (the study's own settings) or settings prior=NAME, flip=P (noise-aware, P in [0, 0.5)),
-data=demonstrations (Batch from the same demonstrations), comma-separated. Writes replay.csv (per
+'study' (the study's own settings) or settings prior=NAME, flip=P (noise-aware, P in [0, 0.5); flip=0 is
+the authors' learner), data=demonstrations (Batch from the same demonstrations), comma-separated; unset
+settings are the study's. Writes replay.csv (per
 participant, task, step and learner: similarity to the ground truth, entropy, MAP formula, next to the
 study's robot) and replay.png/.svg (per participant and task, each learner's final similarity minus the
 study robot's) into --out."""
@@ -37,10 +38,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 def cmd_replay(args: argparse.Namespace) -> dict[str, Any]:
     """Replay, write replay.csv and the figure; print what was written."""
-    learners = [LearnerSpec.parse(text) for text in args.learner]
+    learners = parse_learners(args.learner)
     names = [learner.name for learner in learners]
-    if len(set(names)) != len(names):
-        raise ValueError(f"--learner given twice: {', '.join(sorted({n for n in names if names.count(n) > 1}))}")
     export = read_export(args.export)
     out = Path(args.out)
     try:

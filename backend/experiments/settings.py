@@ -28,9 +28,11 @@ FIXED_TRUTH = "fixed"
 DEFAULT_N_QUERY = (1, 2, 3, 4, 5, 6)
 # The synthetic domain's size; configs written before these settings existed had the paper's 5 + 5.
 SIZE_DEFAULTS = {"n_waypoints": 5, "n_threats": 5}
-MAX_ENUMERATED_WAYPOINTS = 5  # the sweep needs the enumerated learner (similarity, MAP) for now
+MAX_ENUMERATED_WAYPOINTS = 5  # past this, or past MAX_ENUMERATED_HYPOTHESES, the exact learner runs the sweep
 MAX_ENUMERATED_HYPOTHESES = 1_100_000
-CHAIN_STRUCTURES = {2: 3, 3: 13, 4: 73, 5: 501}  # sets of linear chains over n orderable propositions
+MAX_EXACT_WAYPOINTS, MAX_EXACT_THREATS = 10, 10
+# sets of linear chains over n orderable propositions
+CHAIN_STRUCTURES = {2: 3, 3: 13, 4: 73, 5: 501, 6: 4051, 7: 37633, 8: 394353, 9: 4596553, 10: 58941091}
 
 
 @dataclass(frozen=True)
@@ -94,33 +96,48 @@ class ExperimentSettings:
         check_flip_rate(self.learner_flip_rate, "learner_flip_rate")
 
     def _check_size(self) -> None:
-        """The synthetic domain's size: 2 to 5 waypoints, threats while the space stays enumerable."""
+        """The synthetic domain's size: 2 to 10 waypoints; the exact learner past the enumerable spaces."""
         _whole("n_waypoints", self.n_waypoints, minimum=2)
         _whole("n_threats", self.n_threats, minimum=0)
         if self.domain != "synthetic" and (self.n_waypoints, self.n_threats) != tuple(SIZE_DEFAULTS.values()):
             raise ValueError(f"--n-waypoints and --n-threats size the synthetic domain; domain {self.domain!r} "
                              "has its own objects")
-        if self.n_waypoints > MAX_ENUMERATED_WAYPOINTS:
+        if self.exact_learner:
+            self._check_exact()
+
+    @property
+    def exact_learner(self) -> bool:
+        """Whether the sweep runs the exact factorised learner (a synthetic domain past enumeration)."""
+        return self.domain == "synthetic" and (
+            self.n_waypoints > MAX_ENUMERATED_WAYPOINTS or self._space_size(self.n_threats) > MAX_ENUMERATED_HYPOTHESES)
+
+    def _check_exact(self) -> None:
+        """Raise ValueError naming what the exact learner's sweep does not offer."""
+        from ..core.priors import get_prior
+
+        if self.n_waypoints > MAX_EXACT_WAYPOINTS:
+            raise ValueError(f"n_waypoints {self.n_waypoints}: the exact learner takes 2 to {MAX_EXACT_WAYPOINTS}")
+        if self.n_threats > MAX_EXACT_THREATS:
+            raise ValueError(f"n_threats {self.n_threats}: expected at most {MAX_EXACT_THREATS}")
+        structure = get_prior(self.prior).structure
+        wrong = [(name, value, want) for name, value, want in (
+            ("prior structure", structure, "chains' or 'total-order"),
+            ("similarity", self.similarity, "authors"),
+            ("active_strategy", self.active_strategy, "uncertainty"),
+            ("demo_mode", self.demo_mode, "required-only"),
+            ("truth_sampler", self.truth_sampler, "prior"),
+            ("learner_flip_rate", self.learner_flip_rate, 0.0),
+        ) if value != want and not (name == "prior structure" and value in ("chains", "total-order"))]
+        if wrong:
+            name, value, want = wrong[0]
             raise ValueError(
-                f"n_waypoints {self.n_waypoints}: the sweep measures similarity and the MAP formula, which the "
-                f"exact learner past {MAX_ENUMERATED_WAYPOINTS} objects does not compute yet; expected 2 to "
-                f"{MAX_ENUMERATED_WAYPOINTS}"
-            )
-        if self._space_size(self.n_threats) > MAX_ENUMERATED_HYPOTHESES:
-            raise ValueError(
-                f"{self.n_waypoints} waypoints and {self.n_threats} threats: the enumerated space would be too large "
-                f"for a sweep; expected fewer threats (at most {self._max_threats()} with {self.n_waypoints} waypoints)"
-            )
+                f"{name} {value!r} is not offered past enumeration ({self.n_waypoints} waypoints, {self.n_threats} "
+                f"threats), where the exact learner runs the sweep; expected {name} '{want}'")
 
     def _space_size(self, n_threats: int) -> int:
         """Chain structures times G/F codes: the enumerated space of the chains priors."""
         return CHAIN_STRUCTURES[self.n_waypoints] * 2 ** (self.n_waypoints + n_threats)
 
-    def _max_threats(self) -> int:
-        t = 0
-        while self._space_size(t + 1) <= MAX_ENUMERATED_HYPOTHESES:
-            t += 1
-        return t
 
     @property
     def task(self) -> str:

@@ -7,7 +7,8 @@ session state machine: 2 demonstrations, 3 queries, 3 tests, Active or Random) t
 truth, demonstrations and seed: once with a perfect teacher, once with one who flips each verdict with
 probability --flip. Every verdict (queries and tests) gets the probability the learner gave it just
 before; a teacher's score is their mean. Writes consistency_scores.csv (one row per run and teacher),
-consistency_auc.csv and consistency_roc.png/.svg.
+consistency_auc.csv, consistency_flags.csv (the share of each teacher the dashboard's flag marks: a verdict
+with probability below core.consistency.FLAG_BELOW) and consistency_roc.png/.svg.
 """
 
 from __future__ import annotations
@@ -23,7 +24,7 @@ from tqdm import tqdm
 
 from ..core import session as core
 from ..core.belief import check_flip_rate
-from ..core.consistency import auc, consistency_score, session_verdict_probabilities
+from ..core.consistency import FLAG_BELOW, auc, consistency_score, session_verdict_probabilities
 from ..core.domain import get_domain
 from ..core.hypotheses import get_space
 from ..core.priors import DEFAULT_PRIOR
@@ -66,6 +67,18 @@ def simulate(runs: int, flip: float, protocol: str, seed: int, progress: bool) -
                          "ground_truth": domain.clause_space.text_of(truth), "n_verdicts": len(probabilities),
                          "lowest_p_verdict": min(probabilities), "score": consistency_score(probabilities)})
     return rows
+
+
+def flag_rates(rows: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
+    """Per teacher flip rate: how many teachers the flag marks (their lowest verdict probability below
+    FLAG_BELOW) and the share."""
+    out = []
+    for noise in sorted({float(r["teacher_flip_rate"]) for r in rows}):
+        lowest = [float(r["lowest_p_verdict"]) for r in rows if float(r["teacher_flip_rate"]) == noise]
+        n = sum(p < FLAG_BELOW for p in lowest)
+        out.append({"teacher_flip_rate": noise, "teachers": len(lowest), "flag_below": FLAG_BELOW, "flagged": n,
+                    "share_flagged": n / len(lowest)})
+    return out
 
 
 def plot_roc(rows: Sequence[dict[str, Any]], flip: float, title: str, stem: Path) -> list[Path]:
@@ -119,9 +132,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         f.write("protocol,teacher_flip_rate,runs,auc,perfect_score_median,fallible_score_median\n")
         f.write(f"{args.protocol},{args.flip},{args.runs},{value:.4f},{np.median(perfect):.4f},"
                 f"{np.median(fallible):.4f}\n")
+    flags = flag_rates(rows)
+    with open(out / "consistency_flags.csv", "w", encoding="utf-8", newline="") as f:
+        writer = csv.DictWriter(f, fieldnames=list(flags[0]), lineterminator="\n")
+        writer.writeheader()
+        writer.writerows(flags)
     plot_roc(rows, args.flip, f"Teacher consistency, {args.protocol}, dinner table, {args.runs} runs: AUC {value:.3f}",
              out / "consistency_roc")
-    print(f"AUC {value:.3f} (perfect vs flip {args.flip:g}, {args.runs} runs, {args.protocol})")
+    print(f"AUC {value:.3f} (perfect vs flip {args.flip:g}, {args.runs} runs, {args.protocol}); flagged: "
+          + ", ".join(f"{r['flagged']} of {r['teachers']} at flip {r['teacher_flip_rate']:g}" for r in flags))
     return 0
 
 

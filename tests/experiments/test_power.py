@@ -41,6 +41,7 @@ def test_the_command_writes_a_table_and_a_figure(tmp_path, capsys):
     (["--flip-rate", "0.5"], "--flip-rate must be a probability in [0, 0.5)"),
     (["--contrast", "active-nothing"], "invalid choice: 'active-nothing'"),
     (["--pilot", "nowhere.zip"], "is neither a folder nor a zip file"),
+    (["--pilot", "nowhere.zip", "--flip-rate", "0.1"], "(--flip-rate) or a pilot to fit it from (--pilot), not both"),
 ])
 def test_bad_input_is_one_line_and_exit_2(tmp_path, capsys, args, message):
     assert parse_sizes("20,10,10") == (10, 20)
