@@ -28,15 +28,19 @@ export class ApiError extends Error {
 export class ParticipantApi {
   constructor(token) {
     this.token = token;
+    this.held = new Map(); // path -> {tag, data}: the last answer of each poll, sent back as If-None-Match
   }
 
   get headers() {
     return { Authorization: `Bearer ${this.token}`, "Content-Type": "application/json" };
   }
 
-  async request(method, path, body, { key = null, retries = 4 } = {}) {
+  async request(method, path, body, { key = null, retries = 4, revalidate = false } = {}) {
     const headers = { ...this.headers };
     if (key) headers["Idempotency-Key"] = key;
+    // A poll sends the tag of the answer it holds; "304 Not Modified" means that answer is still right.
+    const held = revalidate ? this.held.get(path) : null;
+    if (held) headers["If-None-Match"] = held.tag;
     for (let attempt = 0; ; attempt++) {
       let response;
       try {
@@ -50,8 +54,11 @@ export class ParticipantApi {
         continue;
       }
       if (response.status === 204) return null;
+      if (response.status === 304 && held) return held.data; // the same object: nothing changed
       const data = await response.json().catch(() => ({}));
       if (!response.ok) throw new ApiError(response.status, data.detail || response.statusText, data.state);
+      const tag = response.headers.get("ETag");
+      if (revalidate && tag) this.held.set(path, { tag, data });
       return data;
     }
   }
@@ -61,7 +68,7 @@ export class ParticipantApi {
     return this.request("POST", path, body, { key: randomId() });
   }
 
-  state() { return this.request("GET", "/me", undefined, { retries: 0 }); }
+  state() { return this.request("GET", "/me", undefined, { retries: 0, revalidate: true }); }
   consent(agree, version) { return this.act("/me/consent", { agree, consent_version: version }); }
   instructionsRead() { return this.act("/me/instructions", undefined); }
   place(object, guard) { return this.act("/me/placements", { object, ...guard }); }
@@ -82,7 +89,9 @@ export class ParticipantApi {
 
   /** Prepare the 3D view for the current step: {available, url}. */
   openView() { return this.request("POST", "/me/view", undefined, { retries: 1 }); }
-  robot() { return this.request("GET", "/me/robot", undefined, { retries: 0 }); }
+  /** The 2D view: the tables from above and the current step's recorded motion ({layout, motion, pending, ...}). */
+  topView() { return this.request("GET", "/me/top-view", undefined, { retries: 1 }); }
+  robot() { return this.request("GET", "/me/robot", undefined, { retries: 0, revalidate: true }); }
 
   claimTab(tabId, takeover = false) {
     return this.request("POST", "/me/tab", { tab_id: tabId, takeover }, { retries: 0 });

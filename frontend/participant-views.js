@@ -148,7 +148,7 @@ function demonstrationPanel(state, live, { onPlace, onFinish, onConfirmFinish, o
   const status = moving
     ? (caption ? `${caption}. Please wait until it has finished.` : "The robot is busy. Please wait.")
     : waiting.length
-      ? `Click the next object ${live.view === false ? "below" : "in the 3D view"}, or finish if the table is set.`
+      ? `Click the next object ${live.view === false ? "below" : live.mode === "2d" ? "in the 2D view" : "in the 3D view"}, or finish if the table is set.`
       : "All objects are on Table B. Press the finish button.";
   const finishLabel = practice ? "Finish practice" : "Finish demonstration";
   return h("div", {},
@@ -206,7 +206,7 @@ function executionPanel(state, live, { onStart, onAssess, onReplay, pending }) {
   const status = replaying
     ? statusLine(live.caption ? `${live.caption}. The buttons work again when it has finished.` : "The robot is busy.", true)
     : unseen
-      ? statusLine(`The robot has finished; the 3D view is still showing it (${percent ?? 0}% shown). `
+      ? statusLine(`The robot has finished; the ${live.mode === "2d" ? "2D" : "3D"} view is still showing it (${percent ?? 0}% shown). `
         + "The buttons work when it has been shown to the end.", true)
       : statusLine("The robot has finished.");
   return h("div", {},

@@ -7,6 +7,8 @@ import { ApiError, ParticipantApi, assetUrl, randomId, tokenFromLocation } from 
 import { h } from "./dom.js";
 import * as views from "./participant-views.js";
 import * as ops from "./participant-study-ops.js";
+import { TopViewPlayer, motionFrames, restPoses, tablePicture } from "./participant-top-view.js";
+import * as mode from "./participant-view-mode.js";
 
 const TICK_MS = 1000; // polling while the change events are not connected
 const TICK_WITH_EVENTS_MS = 5000; // with them: only the lease heartbeat and a safety net
@@ -16,6 +18,7 @@ const REDIRECT_SECONDS = 8;
 const PLAYBACK_POLL_MS = 250; // how often the page reads how far the 3D view has played the robot's attempt
 const NO_PLAYER_GRACE_MS = 15000;
 const IDLE_WARNING_SECONDS = 60; // "are you still there?" this long before the idle time-out
+const MODE_NOTE_MS = 12000; // how long the page says why it shows the 2D view
 const UNDER_WAY = ["consent", "instructions", "quiz", "task", "questionnaire"];
 const FORMS = ["quiz", "questionnaire"]; // finished, yet no player to read for this long: the answer is not held back
 
@@ -28,8 +31,12 @@ const el = {
   viewer: document.getElementById("viewer"),
   frame: document.getElementById("viewer-frame"),
   note: document.getElementById("viewer-note"),
+  top: document.getElementById("top-view"),
+  show3d: document.getElementById("view-3d"),
+  show2d: document.getElementById("view-2d"),
+  modeNote: document.getElementById("view-mode-note"),
   banner: document.getElementById("banner"),
-  top: document.getElementById("top-progress"),
+  topProgress: document.getElementById("top-progress"),
   progress: document.getElementById("study-progress"),
   progressBar: document.getElementById("study-progress-bar"),
   progressText: document.getElementById("study-progress-text"),
@@ -52,6 +59,11 @@ let refreshAgain = false;
 // How much of the robot's attempt the 3D view has played (per step: task, kind, index): the answer waits for it.
 let idleReadAt = Date.now(); // when state.idle was read
 let shown = { step: null, playing: false, fraction: null, complete: true, unreadSince: null };
+// 3D or 2D (participant-view-mode.js); the 2D view's picture and player, and what it shows now.
+const probe = mode.probeWebgl();
+let view = mode.initialMode(probe);
+let noteTimer = null;
+let top = { layout: null, picture: null, player: null, placed: null, motionKey: null, loading: false, retry: null };
 
 function showBanner(text) {
   el.banner.textContent = text;
@@ -71,7 +83,8 @@ function guard() {
 }
 
 function setState(next, robot = null) {
-  if (next) { state = next; idleReadAt = Date.now(); }
+  // An unchanged answer (304) is the same object: its idle seconds are as of when it was first read.
+  if (next && next !== state) { state = next; idleReadAt = Date.now(); }
   if (robot) live = robot;
   render();
 }
@@ -183,7 +196,7 @@ function render(force = false) {
   const intro = state.stage === "task" && !introAcknowledged();
   const sig = JSON.stringify([state.stage, state.task, state.step, state.demonstration, state.execution,
     state.completion?.code, state.quiz, progressKey(), live.moving, live.caption, live.view, pending, intro,
-    confirming, shown.complete, shown.fraction === null ? null : Math.round(shown.fraction * 20)]);
+    confirming, view.mode, shown.complete, shown.fraction === null ? null : Math.round(shown.fraction * 20)]);
   if (sig === signature && !force) return;
   signature = sig;
   const key = JSON.stringify([state.stage, state.task?.index, state.step, state.execution?.status, intro,
@@ -197,7 +210,7 @@ function render(force = false) {
     return;
   }
   if (moved) confirming = false;
-  el.top.textContent = state.stage === "task" ? state.task.name : "";
+  el.topProgress.textContent = state.stage === "task" ? state.task.name : "";
   renderProgress();
   document.body.classList.toggle("in-task", state.stage === "task" && !intro);
   const withPending = { ...handlers, pending, confirming };
@@ -224,7 +237,7 @@ function render(force = false) {
 function renderTask(withPending, moved) {
   el.screen.hidden = true;
   el.task.hidden = false;
-  const panel = views.taskPanel(state, { ...live, shown }, { ...withPending, onStart: handlers.onStartExecution });
+  const panel = views.taskPanel(state, { ...live, shown, mode: view.mode }, { ...withPending, onStart: handlers.onStartExecution });
   // Keep the keyboard focus on the same button across a re-render (the panel is rebuilt).
   const focused = document.activeElement?.id || document.activeElement?.dataset?.object;
   el.panel.replaceChildren(panel);
@@ -232,10 +245,13 @@ function renderTask(withPending, moved) {
     (document.getElementById(focused) || el.panel.querySelector(`[data-object="${focused}"]`))?.focus();
   }
   el.task.classList.toggle("no-view", viewer.available === false);
-  syncViewer();
+  syncViewer().then(syncTopView);
 }
 
 function closeViewer() {
+  top.player?.stop();
+  top.placed = null;
+  top.motionKey = null;
   if (viewer.url) {
     el.frame.removeAttribute("src");
     viewer = { stepKey: null, taskIndex: null, url: null, available: null, noWatcherSince: null, busy: false };
@@ -250,19 +266,19 @@ async function syncViewer() {
   if (viewer.busy || stepKey === viewer.stepKey) return;
   viewer.busy = true;
   try {
-    const view = await api.openView();
+    const answer = await api.openView();
     viewer.stepKey = stepKey;
-    viewer.available = view.available;
-    if (!view.available) {
+    viewer.available = answer.available;
+    if (!answer.available) {
       el.note.textContent = "The 3D view is not available; use the buttons on the right.";
       el.task.classList.add("no-view");
       return;
     }
     el.task.classList.remove("no-view");
-    if (viewer.taskIndex !== state.task.index || viewer.url !== view.url) {
+    if (viewer.taskIndex !== state.task.index || viewer.url !== answer.url) {
       viewer.taskIndex = state.task.index;
-      viewer.url = view.url;
-      loadFrame();
+      viewer.url = answer.url;
+      if (view.mode === "3d") loadFrame();
     }
   } catch (error) {
     handleError(error);
@@ -272,10 +288,11 @@ async function syncViewer() {
 }
 
 function loadFrame() {
+  if (view.mode !== "3d") return;
   viewer.noWatcherSince = Date.now();
   el.note.hidden = false;
   el.note.textContent = "Loading the 3D view…";
-  el.frame.src = viewer.url;
+  el.frame.src = mode.viewerUrl(viewer.url, probe);
 }
 
 // The viewer page the server sends already hides viser's control panel and pop-up notices.
@@ -283,8 +300,106 @@ el.frame.addEventListener("load", () => {
   if (viewer.url) el.note.hidden = true;
 });
 
+/** Show the 3D or the 2D view (the other stops: the 3D view's frame is emptied, the 2D player stopped). */
+function applyMode(why = null) {
+  const flat = view.mode === "2d";
+  el.task.classList.toggle("flat", flat);
+  el.top.hidden = !flat;
+  el.frame.hidden = flat;
+  el.show3d.setAttribute("aria-pressed", String(!flat));
+  el.show2d.setAttribute("aria-pressed", String(flat));
+  el.show3d.disabled = !probe.webgl;
+  el.modeNote.textContent = why ?? "";
+  el.modeNote.hidden = !why;
+  clearTimeout(noteTimer);
+  if (why) noteTimer = setTimeout(() => { el.modeNote.hidden = true; }, MODE_NOTE_MS); // it covers the tables
+  if (flat) {
+    el.frame.removeAttribute("src");
+    el.note.hidden = true;
+    viewer.noWatcherSince = null;
+  } else {
+    top.player?.stop();
+    top.placed = null;
+    top.motionKey = null;
+    if (viewer.url) loadFrame();
+  }
+}
+
+function switchMode(next, why = null) {
+  if (next === view.mode) return;
+  view = { mode: next, reason: why ? "slow" : "choice" };
+  applyMode(why);
+  render(true);
+}
+
+/** Bring the 2D view up to date with the state: a still table, the last placement glided, or the step's recording. */
+async function syncTopView() {
+  if (view.mode !== "2d" || state?.stage !== "task" || viewer.available === false || top.loading) return;
+  const ex = state.execution;
+  const robotTurn = ex && ex.status !== "not_started" && ["query", "test"].includes(state.step?.kind);
+  const motionKey = robotTurn ? JSON.stringify([state.task.index, ex.kind, ex.index, ex.replays ?? 0]) : null;
+  if (motionKey && !(Number(ex.motion_seconds) > 0)) {
+    // The robot is getting ready: its motion plays once its clock has started (as the 3D view's does).
+    if (top.layout && top.placed !== null) { top.player.still(restPoses(top.layout, [])); top.placed = null; }
+    if (top.layout) return;
+  }
+  if (!top.layout || (motionKey && motionKey !== top.motionKey)) {
+    top.loading = true;
+    let answer;
+    try {
+      answer = await api.topView();
+    } catch (error) {
+      if (error instanceof ApiError) handleError(error); else console.error(error);
+      return;
+    } finally {
+      top.loading = false;
+    }
+    if (!top.layout) {
+      top.layout = answer.layout;
+      top.picture = tablePicture(answer.layout, { onPick: (obj) => pickInTopView(obj) });
+      top.player = new TopViewPlayer(top.picture);
+      el.top.replaceChildren(top.picture.element);
+    }
+    if (motionKey) {
+      if (!answer.motion || !(Number(state.execution?.motion_seconds) > 0)) {
+        // The robot is still working its motion out: ask again shortly.
+        clearTimeout(top.retry);
+        if (!answer.motion) top.retry = setTimeout(() => syncTopView(), 700);
+        top.player.still(restPoses(top.layout, []));
+        top.placed = null;
+        return;
+      }
+      top.motionKey = motionKey;
+      top.placed = null;
+      top.player.play(motionFrames(answer.motion, top.layout), Number(state.execution.motion_seconds) || 0);
+      top.picture.describe(`The tables from above: the robot places ${ex.events.map((o) => `the ${o.replaceAll("_", " ")}`).join(", ")}`);
+      return;
+    }
+  }
+  if (motionKey) return; // the recording is playing or has played
+  top.motionKey = null;
+  const placed = ["practice", "demonstration"].includes(state.step?.kind) ? state.demonstration?.placed ?? [] : [];
+  const previous = top.placed;
+  top.placed = [...placed];
+  const to = restPoses(top.layout, placed);
+  top.picture.describe(placed.length
+    ? `The tables from above: on Table B, ${placed.map((o) => `the ${o.replaceAll("_", " ")}`).join(", ")}`
+    : "The tables from above: every object is on Table A");
+  const added = previous && placed.length === previous.length + 1 && previous.every((o, i) => placed[i] === o);
+  if (added) top.player.place(placed.at(-1), restPoses(top.layout, previous), to);
+  else if (JSON.stringify(previous) !== JSON.stringify(placed)) top.player.still(to);
+}
+
+/** A click on an object in the 2D view places it, as a click in the 3D view does (during a demonstration). */
+function pickInTopView(obj) {
+  if (!state || state.stage !== "task" || pending || live.moving) return;
+  if (!["practice", "demonstration"].includes(state.step?.kind)) return;
+  if (state.demonstration?.placed?.includes(obj) || state.demonstration?.settled === false) return;
+  handlers.onPlace(obj);
+}
+
 function watchViewer() {
-  if (!viewer.url || state?.stage !== "task") return;
+  if (!viewer.url || state?.stage !== "task" || view.mode !== "3d") return;
   // A recorded execution plays from a file in the browser: no live connection to watch over.
   if (viewer.url.includes("playbackPath=")) return;
   if (live.watchers > 0) {
@@ -334,11 +449,11 @@ function watchIdle() {
 
 async function refreshState() {
   setState(await api.state());
-  idleReadAt = Date.now();
 }
 
-/** The seconds the 3D view's player has played of the recorded attempt (viser's hidden playback slider), or null. */
+/** The seconds the view has played of the recorded attempt (the 2D player, or viser's hidden playback slider), or null. */
 function playbackSeconds() {
+  if (view.mode === "2d") return top.player?.frames ? top.player.position : null;
   try {
     const thumb = el.frame.contentDocument?.querySelector('.mantine-Slider-root [role="slider"]');
     const seconds = thumb ? Number(thumb.getAttribute("aria-valuenow")) : NaN;
@@ -355,6 +470,22 @@ function watchPlayback() {
   const step = JSON.stringify([state.task.index, ex.kind, ex.index]);
   const motion = Number(ex.motion_seconds) || 0;
   const playing = Boolean(viewer.url?.includes("playbackPath=")) && viewer.available !== false;
+  if (view.mode === "2d") {
+    // The 2D player plays the recording over the stored motion length: its fraction is what was shown.
+    if (shown.step !== step) shown = { step, playing: true, fraction: 0, complete: motion <= 0, unreadSince: null };
+    if (shown.complete && shown.fraction === 1) return;
+    const before = JSON.stringify(shown);
+    if (top.player?.frames && motion > 0) {
+      shown.unreadSince = null;
+      shown.fraction = Math.max(shown.fraction ?? 0, Math.min(1, top.player.fraction));
+      if (shown.fraction >= 0.995) { shown.fraction = 1; shown.complete = true; }
+    } else if (ex.status === "finished" && !shown.complete) {
+      shown.unreadSince ??= Date.now(); // no recording to play: allowed after the grace period, as in 3D
+      if (Date.now() - shown.unreadSince > NO_PLAYER_GRACE_MS) shown.complete = true;
+    }
+    if (JSON.stringify(shown) !== before) render();
+    return;
+  }
   if (shown.step !== step || (playing && !shown.playing)) {
     shown = { step, playing, fraction: playing && motion > 0 ? 0 : null, complete: !playing || motion <= 0,
       unreadSince: null };
@@ -457,7 +588,7 @@ async function claim(takeover = false) {
   if (!blocked) {
     blocked = true;
     state = null;
-    el.top.textContent = "";
+    el.topProgress.textContent = "";
     el.progress.hidden = true;
     ops.syncWithdrawLink(null, handlers); // the tab that holds the page offers withdrawal
     showScreen(views.elsewhereView(handlers));
@@ -480,6 +611,11 @@ async function tick() {
 }
 
 setInterval(watchPlayback, PLAYBACK_POLL_MS);
+el.show3d.addEventListener("click", () => { mode.storeChoice("3d"); switchMode("3d"); });
+el.show2d.addEventListener("click", () => { mode.storeChoice("2d"); switchMode("2d"); });
+mode.watchStalls(() => view.mode === "3d" && view.reason !== "choice" && Boolean(el.frame.getAttribute("src")),
+  () => switchMode("2d", "The 3D view was too slow on this device, so the tables are shown in 2D. "
+    + "The 3D button switches back."));
 setInterval(watchIdle, 1000);
 document.addEventListener("visibilitychange", () => { if (document.visibilityState === "hidden") sendSignal("tab_hidden"); });
 // Focus moving into the 3D view's frame blurs the window too: only a window left while the tab stays visible counts.
@@ -491,6 +627,7 @@ window.addEventListener("beforeunload", warnBeforeLeaving);
 
 async function start() {
   ops.installStyles(assetUrl);
+  applyMode(view.reason === "no-webgl" ? "This browser cannot show 3D, so the tables are shown in 2D." : null);
   try {
     // A finished participant who opens the link again sees their completion code, in any tab.
     state = await api.state();

@@ -16,6 +16,8 @@ from .world import OBJECTS
 POSE_EPSILON = 1e-4  # pose change (m or quaternion units) below which a body is not re-sent
 HIDDEN_GROUP = 3  # geoms in this group and above are collision-only (see scene.xml)
 TABLE_LABELS = {"table_a": "Table A", "table_b": "Table B"}  # as the participant's instructions name them
+OBJECT_LABEL_HEIGHT = 0.02  # m above an object's centre; the label hangs below that point on screen, away from the arm
+CAPTION_NODE = "/caption"  # the scene node of the one-line status (recordings change its text)
 
 
 def capsule_mesh(
@@ -76,6 +78,8 @@ class BodyMirror:
             handle = add_geom(self.scene, model, int(g), f"/{name}/g{g}")
             if handle is not None:
                 self.geoms[name].append(handle)
+        if name in OBJECTS:
+            add_object_label(self.scene, name)
 
     def set_poses(self, bodies: Sequence[str], poses: np.ndarray) -> int:
         """Push (x, y, z, qw, qx, qy, qz) per body this mirror holds, skipping unchanged ones; how many were sent."""
@@ -162,9 +166,16 @@ def add_table_labels(scene: viser.SceneApi, model: mujoco.MjModel, data: mujoco.
                         anchor="top-center", font_screen_scale=1.1)
 
 
+def add_object_label(scene: viser.SceneApi, name: str) -> viser.LabelHandle:
+    """The object's name on it (a child of its frame, so it moves with it), hanging below it on screen: the arm
+    reaches objects from above, so the name is rarely under the arm."""
+    return scene.add_label(f"/{name}/label", name.replace("_", " "), position=(0.0, 0.0, OBJECT_LABEL_HEIGHT),
+                           anchor="top-center", font_screen_scale=1.0)
+
+
 def add_caption(scene: viser.SceneApi) -> viser.LabelHandle:
     """The one-line status above the tables (hidden while empty)."""
-    return scene.add_label("/caption", "", position=(0.7, 0.0, 0.06), anchor="top-center", font_screen_scale=1.3,
+    return scene.add_label(CAPTION_NODE, "", position=(0.7, 0.0, 0.06), anchor="top-center", font_screen_scale=1.3,
                            visible=False)
 
 

@@ -24,6 +24,7 @@ from starlette.websockets import WebSocketDisconnect
 
 from .. import services
 from ..errors import NotAuthenticated
+from .conditional import NOT_MODIFIED, client_has, not_modified, tag_answer
 from .deps import ContextDep, IdempotencyKey, TokenDep
 from .motion import playback_url
 from .robots import viewer_client_html
@@ -55,6 +56,16 @@ class TabOut(BaseModel):
 class ViewOut(BaseModel):
     available: bool = Field(description="false when the robot has no 3D view or the participant is not at a task")
     url: str | None = Field(description="the viewer page to embed (same origin)")
+
+
+class TopViewOut(BaseModel):
+    layout: dict[str, Any] = Field(description="the tables, the robot's base and each object's footprint, start and "
+                                   "slot, in metres seen from above (world frame)")
+    step: dict[str, Any] | None = Field(description="the recorded step (task_index, kind, index), or null")
+    replays: int = Field(description="how often the participant asked to watch it again")
+    pending: bool = Field(description="true while the robot is still working the step's motion out: ask again")
+    motion: dict[str, Any] | None = Field(description="bodies, times (s), poses per frame [x, y, z, yaw] and "
+                                          "action_ends of the recorded motion, or null")
 
 
 class ActivityOut(BaseModel):
@@ -218,6 +229,13 @@ def open_view(ctx: ContextDep, token: TokenDep) -> dict:
     return {"available": available, "url": viewer_path(token) if available else None}
 
 
+@router.get("/api/v1/me/top-view", response_model=TopViewOut, responses=error_responses(401))
+async def top_view(ctx: ContextDep, token: TokenDep) -> dict:
+    """The page's 2D view: the tables from above and the current step's recorded motion (objects and arm, thinned
+    to 15 frames a second), the same recording the 3D view plays. Reads only."""
+    return await run_in_threadpool(services.flat_view, ctx, token)
+
+
 @router.post("/api/v1/me/execution/replay", response_model=ParticipantState,
              responses=error_responses(400, 401, 409, 422))
 async def replay(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None, body: StepGuard | None = None) -> dict:
@@ -226,16 +244,21 @@ async def replay(ctx: ContextDep, token: TokenDep, key: IdempotencyKey = None, b
     return await run_in_threadpool(services.replay_execution, ctx, token, expect=expect, key=key)
 
 
-@router.get("/api/v1/me/robot", response_model=ActivityOut, responses=error_responses(401))
-def robot_activity(ctx: ContextDep, token: TokenDep) -> dict:
-    """Whether the robot is moving, what it is doing, and how many 3D views are connected."""
-    return services.robot_activity(ctx, token)
+@router.get("/api/v1/me/robot", response_model=ActivityOut, responses={**error_responses(401), **NOT_MODIFIED})
+async def robot_activity(request: Request, response: Response, ctx: ContextDep, token: TokenDep) -> Any:
+    """Whether the robot is moving, what it is doing, and how many 3D views are connected (with an ETag)."""
+    activity = await run_in_threadpool(services.robot_activity, ctx, token)
+    tag = services.activity_tag(activity)
+    if client_has(request, tag):
+        return not_modified(tag)
+    tag_answer(response, tag)
+    return activity
 
 
 @router.post("/api/v1/me/tab", response_model=TabOut, responses=error_responses(400, 401, 422))
-def claim_tab(body: TabIn, ctx: ContextDep, token: TokenDep) -> dict:
+async def claim_tab(body: TabIn, ctx: ContextDep, token: TokenDep) -> dict:
     """Hold or renew this tab's lease on the page (renew every few seconds); takeover moves it here."""
-    return services.claim_tab(ctx, token, body.tab_id, takeover=body.takeover)
+    return await run_in_threadpool(services.claim_tab, ctx, token, body.tab_id, takeover=body.takeover)
 
 
 @router.post("/api/v1/me/tab/release", status_code=204, responses=error_responses(400, 401, 422))

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import atexit
 import os
 import tempfile
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -25,16 +27,33 @@ VIEWPORT = {"width": 640, "height": 400}
 TIMEOUT_MS = 120_000  # software WebGL renders a few frames per second, far fewer on a loaded machine
 
 
-@contextmanager
-def launch_chromium(viewport: dict[str, int] = VIEWPORT) -> Iterator[object]:
-    """A Playwright BrowserContext on /usr/bin/chromium with a fresh user-data dir."""
-    from playwright.sync_api import sync_playwright
+NO_WEBGL_ARGS = ["--disable-3d-apis"]  # a browser without WebGL (the participant page then shows its 2D view)
 
-    with tempfile.TemporaryDirectory(prefix="chromium-profile-") as profile, sync_playwright() as pw:
+
+_DRIVER: list[object] = []
+
+
+def playwright_driver() -> Any:
+    """This process's one Playwright driver, started on first use: Playwright's sync API refuses a second one
+    while the first runs (the session's shared browser), so every browser of the process comes from this one."""
+    if not _DRIVER:
+        from playwright.sync_api import sync_playwright
+
+        driver = sync_playwright().start()
+        atexit.register(driver.stop)
+        _DRIVER.append(driver)
+    return _DRIVER[0]
+
+
+@contextmanager
+def launch_chromium(viewport: dict[str, int] = VIEWPORT, extra_args: list[str] | None = None) -> Iterator[object]:
+    """A Playwright BrowserContext on /usr/bin/chromium with a fresh user-data dir (and extra_args for Chromium)."""
+    pw = playwright_driver()
+    with tempfile.TemporaryDirectory(prefix="chromium-profile-") as profile:
         context = pw.chromium.launch_persistent_context(
             profile,
             executable_path=str(CHROMIUM),
-            args=CHROMIUM_ARGS,
+            args=CHROMIUM_ARGS + list(extra_args or []),
             headless=True,
             viewport=viewport,
         )
@@ -57,9 +76,26 @@ def chromium_browser() -> Iterator[object]:
         yield context
 
 
+# As a participant who chose the 3D view: on this loaded machine software WebGL stalls the page, and the page would
+# rightly switch to its 2D view (participant-view-mode.js), under tests that click or compare the 3D view.
+CHOSE_3D_VIEW = ("try { if (!localStorage.getItem('tableteach-view')) localStorage.setItem('tableteach-view', '3d'); }"
+                 " catch (e) {}")
+
+
 @pytest.fixture
 def browser_page(chromium_browser: object) -> Iterator[object]:
-    """A fresh page in the shared Chromium context, closed after the test."""
+    """A fresh page in the shared Chromium context, as a participant who chose the 3D view; closed after the test."""
+    page = chromium_browser.new_page()  # type: ignore[attr-defined]
+    page.add_init_script(CHOSE_3D_VIEW)
+    try:
+        yield page
+    finally:
+        page.close()
+
+
+@pytest.fixture
+def default_view_page(chromium_browser: object) -> Iterator[object]:
+    """A fresh page in the shared Chromium context with no view chosen (the page picks 3D or 2D itself)."""
     page = chromium_browser.new_page()  # type: ignore[attr-defined]
     try:
         yield page
