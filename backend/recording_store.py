@@ -3,10 +3,19 @@
 The services name recordings with RecordingId and reach the files through RecordingStore only; the files
 themselves are written by the robot (tableteach.sim). FileRecordingStore keeps them under
 <data_dir>/recordings/participant-<uid>/task-<i>/<kind>-<j>.{npz,json,viser}.
+
+A robot may share motion between participants (the same table and plan give the same motion): the shared
+files live under <data_dir>/recordings/motion/<digest>.* and each participant's .npz and .viser are hard links
+to them (their .json is their own). Erasing a participant removes their folder and then every shared motion
+that no participant's file links any more.
+
+Where several hosts serve one study (TABLETEACH_RECORDING_STORE=database), tableteach.db.shared_recordings keeps
+the finished files in the database as well and uses this folder as each host's cache of them.
 """
 
 from __future__ import annotations
 
+import hashlib
 import re
 import shutil
 from dataclasses import dataclass
@@ -14,8 +23,10 @@ from pathlib import Path
 from typing import Any, Protocol
 
 FOLDER = "recordings"
+SHARED_FOLDER = "motion"  # under FOLDER: motion files shared by participants (hard-linked into their folders)
 VISER_SUFFIX = ".viser"
 STEP_KINDS = ("practice", "demonstration", "query", "test")
+SUFFIXES = (".npz", ".json", VISER_SUFFIX)  # a step's files: poses, what happened, the browser's motion file
 _UID = re.compile(r"^[0-9a-f]{32}$")
 _NAME = re.compile(r"^participant-([0-9a-f]{32})/task-(\d+)/(practice|demonstration|query|test)-(\d+)$")
 
@@ -59,6 +70,20 @@ class RecordingId:
         return cls(uid, int(task), kind, int(index))
 
 
+@dataclass(frozen=True)
+class RecordingFile:
+    """One finished recording file: its name under the recordings folder and its bytes."""
+
+    name: str  # participant-<uid>/task-<i>/<kind>-<j>.<suffix>
+    participant_uid: str
+    data: bytes
+
+    @property
+    def digest(self) -> str:
+        """The SHA-256 of the bytes (the name they are kept by)."""
+        return hashlib.sha256(self.data).hexdigest()
+
+
 class RecordingStore(Protocol):
     """What the services need of the recordings: the browser's file of a step, and erasure."""
 
@@ -66,8 +91,24 @@ class RecordingStore(Protocol):
         """Where the step's .viser file (for the browser) is or will be."""
         ...
 
+    def ready(self, rid: RecordingId) -> bool:
+        """Whether the step's .viser file is at playable(rid) now (fetched there from a shared store if need be)."""
+        ...
+
+    def finished(self, rid: RecordingId) -> list[RecordingFile]:
+        """The step's finished files to keep where every host reaches them ([] for a store of local files)."""
+        ...
+
     def delete_participant(self, participant_uid: str) -> int:
         """Remove every recording of one participant; the number of files removed."""
+        ...
+
+    def cached_uids(self) -> list[str]:
+        """The participants of whom this host holds copies of files kept elsewhere ([] for a store of local files)."""
+        ...
+
+    def forget_cached(self, participant_uids: list[str]) -> int:
+        """Remove this host's copies of these participants' files (erased on another host); how many folders."""
         ...
 
     def layout(self) -> dict[str, Any]:
@@ -90,13 +131,60 @@ class FileRecordingStore:
         """The step's .viser file path."""
         return (self.data_dir / FOLDER / rid.name).with_suffix(VISER_SUFFIX)
 
+    def ready(self, rid: RecordingId) -> bool:
+        """Whether the step's .viser file exists."""
+        return self.playable(rid).is_file()
+
+    def finished(self, rid: RecordingId) -> list[RecordingFile]:
+        """Nothing to keep elsewhere: the files are where they are kept."""
+        return []
+
+    def cached_uids(self) -> list[str]:
+        """No copies: the files are where they are kept."""
+        return []
+
+    def forget_cached(self, participant_uids: list[str]) -> int:
+        """No copies to remove (erasure removed the files themselves)."""
+        return 0
+
     def delete_participant(self, participant_uid: str) -> int:
-        """Remove the participant's folder; the number of files it held."""
+        """Remove the participant's folder, then the shared motion nobody links any more; the number of files."""
         folder = self.data_dir / FOLDER / f"participant-{check_uid(participant_uid)}"
         if not folder.exists():
             return 0
         removed = sum(1 for path in folder.rglob("*") if path.is_file())
         shutil.rmtree(folder)
+        return removed + self.sweep_shared()
+
+    @property
+    def shared_folder(self) -> Path:
+        """Where motion shared by participants is kept."""
+        return self.data_dir / FOLDER / SHARED_FOLDER
+
+    def sweep_shared(self) -> int:
+        """Remove every shared motion (its files by one stem) of which no file has a link outside the shared
+        folder; the number of files removed. A robot links a new motion into a participant's folder before
+        it gives it its shared name, so a sweep never takes one being written."""
+        folder = self.shared_folder
+        if not folder.exists():
+            return 0
+        groups: dict[str, list[Path]] = {}
+        for path in folder.iterdir():
+            if not path.name.startswith("."):  # a file still being written
+                groups.setdefault(path.name.split(".", 1)[0], []).append(path)
+        removed = 0
+        for paths in groups.values():
+            try:
+                if any(p.stat().st_nlink > 1 for p in paths):
+                    continue
+            except FileNotFoundError:
+                continue  # another sweep got there first
+            for path in paths:
+                try:
+                    path.unlink()
+                    removed += 1
+                except FileNotFoundError:
+                    pass
         return removed
 
     def layout(self) -> dict[str, Any]:

@@ -29,6 +29,9 @@ DATA_PREFIX = "data/"
 # Left out of a backup: dev mode's generated key (a secret that is made again) and temporary files.
 SKIPPED_DATA_FILES = {"dev-experimenter-token"}
 SKIPPED_SUFFIXES = (".tmp", ".part")
+# Copies the robot makes again on demand: its caches, and the shared motion each participant's own recording
+# files are links to (the archive holds those files themselves, so a restore gives each their own copy).
+SKIPPED_DATA_FOLDERS = ("robot-cache/", "recordings/motion/")
 STABLE_READ_TRIES = 5
 
 
@@ -111,7 +114,8 @@ def _data_files(data_dir: Path) -> list[Path]:
         if not path.is_file() or path.is_symlink():
             continue
         rel = path.relative_to(data_dir)
-        if rel.as_posix() in SKIPPED_DATA_FILES or path.name.endswith(SKIPPED_SUFFIXES):
+        if (rel.as_posix() in SKIPPED_DATA_FILES or path.name.endswith(SKIPPED_SUFFIXES)
+                or rel.as_posix().startswith(SKIPPED_DATA_FOLDERS)):
             continue
         out.append(path)
     return out

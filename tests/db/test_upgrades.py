@@ -38,7 +38,8 @@ def _dump(path: Path) -> Rows:
     """Every row of every table, as the raw values SQLite stores."""
     with sqlite3.connect(path) as con:
         con.row_factory = sqlite3.Row
-        return {table: [dict(r) for r in con.execute(f"SELECT * FROM {table} ORDER BY id")] for table in _tables(path)}
+        return {table: [dict(r) for r in con.execute(f"SELECT * FROM {table} ORDER BY rowid")]
+                for table in _tables(path)}
 
 
 def _insert(path: Path, rows: Rows) -> dict[str, list[str]]:
