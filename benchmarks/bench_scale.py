@@ -11,8 +11,10 @@ as the sticky reverse proxy (deploy/nginx.conf) would route them. Each participa
   gets the playback URL and downloads the execution's .viser file, which the browser would play. The
   reader times the wait for the file (the robot works the execution out first; its clock starts when it
   is ready), the transfer, and reads the frame times inside the file: its frame rate and largest gap;
-- polls GET /me and GET /me/robot every --poll seconds while at a task, and renews its tab lease every
-  5 s, as the participant page does; then answers the questionnaire.
+- follows the page's change events (GET /p/<token>/events, server-sent events) and, on each, reads GET /me and
+  GET /me/robot with the ETags of its last answers (If-None-Match), as frontend/participant.js does; as a safety
+  net it renews its tab lease and reads both every --poll seconds (the page's 5 s while its event stream is
+  open, 1 s while it is not); then answers the questionnaire.
 
 Targets (exit status 0 only if all hold): every REST action's p99 under 200 ms, 0 errors, every session
 completed, every watched execution at 25 fps or more with no stall over 0.5 s (transfer or frame gap).
@@ -20,9 +22,11 @@ completed, every watched execution at 25 fps or more with no stall over 0.5 s (t
 It prints progress every few seconds, then p50/p99 per action, CPU seconds per app process and per
 participant, the database's CPU and transactions, and last:
 
-    participants N processes K rest_p99_ms X min_fps Y errors Z
+    participants N processes K rest_p99_ms X min_fps Y errors Z cpu_per_session_s C learner_s L
 
-where X is the worst action's p99 (the target holds for every action, not only for all requests pooled).
+where X is the worst action's p99 (the target holds for every action, not only for all requests pooled), C the
+app's CPU seconds (server and robot workers) per participant session, and L one participant's learner compute
+measured in this run (benchmarks/bench_learner.py's session, on a fresh state).
 
     .venv/bin/python benchmarks/bench_scale.py --participants 20 --processes 2
 """
@@ -31,6 +35,7 @@ from __future__ import annotations
 
 import argparse
 import asyncio
+import json
 import os
 import secrets
 import subprocess
@@ -56,6 +61,8 @@ NOT_REST = "recording"  # the wait for an execution's file: timed with the actio
 TARGET_FPS = 25.0
 TARGET_STALL_S = 0.5
 TAB_RENEW_S = 5.0  # frontend/participant.js HEARTBEAT_MS
+POLL_WITH_EVENTS_S = 5.0  # frontend/participant.js TICK_WITH_EVENTS_MS
+POLL_WITHOUT_EVENTS_S = 1.0  # TICK_MS
 POSE_MESSAGES = ("SetPositionMessage", "SetOrientationMessage")
 MUJOCO_SECONDS_PER_OBJECT = 5.6  # one pick-and-place of the MuJoCo arm at speed 1
 
@@ -199,6 +206,7 @@ class Results:
     completed: int = 0
     watched: list[dict[str, float]] = field(default_factory=list)  # one per execution: fps, gap, download
     live_motions: list[dict[str, float]] = field(default_factory=list)  # one per placement shown live: fps, gap
+    not_modified: dict[str, int] = field(default_factory=dict)  # conditional reads answered 304, per action
 
     def rest(self, action: str, seconds: float) -> None:
         self.latencies.setdefault(action, []).append(seconds)
@@ -261,7 +269,8 @@ def viser_frames(data: bytes) -> list[float]:
 
 
 class Participant:
-    """One simulated person: the actions of the scripted teacher at a person's pace, plus the page's polling."""
+    """One simulated person: the actions of the scripted teacher at a person's pace, plus what the page does by
+    itself (change events, conditional reads, the lease, the safety-net poll)."""
 
     def __init__(self, i: int, base: str, study_id: str, results: Results, think: float, poll: float) -> None:
         self.i, self.study_id, self.results = i, study_id, results
@@ -271,12 +280,23 @@ class Participant:
         self.teacher = SimulatedTeacher(get_domain("dinner"), truth_mask("task1"), 0.1)
         self.token: str | None = None
         self.state: dict[str, Any] = {}
+        self.robot: dict[str, Any] = {}
         self.tab = secrets.token_urlsafe(12)
+        self.tags: dict[str, tuple[str, dict[str, Any]]] = {}  # path -> (ETag, answer), as api.js keeps them
+        self.events_open = False
+        self.has_view = False
+        self.refreshed = asyncio.Event()  # set after every refresh: the waits below follow it, as the page does
+        self._refreshing: asyncio.Task[None] | None = None
+        self._again = False
 
-    async def request(self, method: str, path: str, body: Any = None, action: str | None = None) -> dict[str, Any]:
+    async def request(self, method: str, path: str, body: Any = None, action: str | None = None,
+                      revalidate: bool = False) -> dict[str, Any]:
         headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
         if method == "POST":
             headers["Idempotency-Key"] = str(uuid.uuid4())
+        held = self.tags.get(path) if revalidate else None
+        if held:
+            headers["If-None-Match"] = held[0]
         name = action or path.rsplit("/", 1)[-1]
         started = time.perf_counter()
         try:
@@ -285,31 +305,106 @@ class Participant:
             self.results.errors.append(f"{method} {name}: {exc!r}")
             raise
         self.results.rest(name, time.perf_counter() - started)
+        if response.status_code == 304 and held:
+            self.results.not_modified[name] = self.results.not_modified.get(name, 0) + 1
+            return held[1]
         if response.status_code >= 400:
             self.results.errors.append(f"{method} {name}: HTTP {response.status_code} {response.text[:200]}")
             raise RuntimeError(f"{method} {path}: HTTP {response.status_code}")
-        return response.json() if response.content else {}
+        answer = response.json() if response.content else {}
+        if revalidate and "etag" in response.headers:
+            self.tags[path] = (response.headers["etag"], answer)
+        return answer
+
+    def take(self, state: dict[str, Any]) -> None:
+        """A newer state (an action's answer or a read); an older read that arrives late is ignored."""
+        if state.get("n_events", 0) >= self.state.get("n_events", 0):
+            self.state = state
 
     async def pause(self) -> None:
         await asyncio.sleep(self.think * float(self.rng.uniform(0.5, 1.5)))
 
+    async def _read_both(self) -> None:
+        while True:
+            self._again = False
+            in_task = self.state.get("stage") == "task"
+            me = self.request("GET", "/api/v1/me", action="GET me", revalidate=True)
+            if in_task:
+                state, robot = await asyncio.gather(
+                    me, self.request("GET", "/api/v1/me/robot", action="GET robot", revalidate=True))
+                self.robot = robot
+            else:
+                state = await me
+            self.take(state)
+            self.refreshed.set()
+            if not self._again:
+                return
+
+    async def refresh(self) -> None:
+        """What the page's refresh() does: GET me and (during a task) GET robot; a change meanwhile reads again."""
+        if self._refreshing is not None and not self._refreshing.done():
+            self._again = True
+            return
+        self._refreshing = asyncio.create_task(self._read_both())
+        try:
+            await self._refreshing
+        except (httpx.HTTPError, RuntimeError):
+            pass  # counted as an error already
+
+    async def follow_events(self, stop: asyncio.Event) -> None:
+        """The page's EventSource: a refresh per change event (the event's robot activity shown at once)."""
+        while not stop.is_set():
+            try:
+                async with self.http.stream("GET", f"/p/{self.token}/events", timeout=httpx.Timeout(60, read=None),
+                                            headers={"Accept": "text/event-stream"}) as response:
+                    if response.status_code != 200:
+                        raise RuntimeError(f"event stream: HTTP {response.status_code}")
+                    self.events_open = True
+                    kind = ""
+                    async for line in response.aiter_lines():
+                        if line.startswith("event:"):
+                            kind = line[6:].strip()
+                        elif line.startswith("data:") and kind == "change":
+                            robot = json.loads(line[5:]).get("robot")
+                            if robot and self.state.get("stage") == "task":
+                                self.robot = robot
+                            asyncio.create_task(self.refresh())
+                        elif line.startswith("data:") and kind == "superseded":
+                            self.events_open = False
+                            return
+            except (httpx.HTTPError, RuntimeError) as exc:
+                if not stop.is_set():
+                    self.results.errors.append(f"event stream: {exc!r}")
+            self.events_open = False
+            await asyncio.sleep(1.0)  # EventSource's retry
+
     async def page(self, stop: asyncio.Event) -> None:
-        """The open participant page: state and robot activity every `poll` s, the tab lease every 5 s."""
+        """The page's tick: the lease every 5 s and, during a task, a safety-net refresh (5 s with events, else 1 s)."""
         last_tab = 0.0
         while not stop.is_set():
             try:
-                if self.state.get("stage") == "task":
-                    await self.request("GET", "/api/v1/me", action="GET me")
-                    await self.request("GET", "/api/v1/me/robot", action="GET robot")
                 if time.monotonic() - last_tab > TAB_RENEW_S:
                     await self.request("POST", "/api/v1/me/tab", {"tab_id": self.tab}, action="tab")
                     last_tab = time.monotonic()
+                if self.state.get("stage") == "task":
+                    await self.refresh()
             except (httpx.HTTPError, RuntimeError):
                 pass  # counted as an error already
+            tick = self.poll if self.events_open else POLL_WITHOUT_EVENTS_S
             try:
-                await asyncio.wait_for(stop.wait(), self.poll)
+                await asyncio.wait_for(stop.wait(), tick)
             except asyncio.TimeoutError:
                 pass
+
+    async def until(self, condition: Any) -> None:
+        """Wait, as the page does, for a refresh that shows `condition` (events bring them; the tick is the net)."""
+        while not condition():
+            self.refreshed.clear()
+            try:
+                await asyncio.wait_for(self.refreshed.wait(), 60)
+            except asyncio.TimeoutError:
+                self.results.errors.append("no refresh for 60 s while waiting on the robot")
+                raise
 
     async def run(self) -> None:
         joined = await self.request("POST", f"/api/v1/studies/{self.study_id}/join",
@@ -317,6 +412,7 @@ class Participant:
         self.token, self.state = joined["state"]["token"], joined["state"]
         stop = asyncio.Event()
         page = asyncio.create_task(self.page(stop))
+        events = asyncio.create_task(self.follow_events(stop))
         try:
             await self.pause()
             self.state = await self.request("POST", "/api/v1/me/consent",
@@ -326,7 +422,8 @@ class Participant:
             viewed_task = None
             while self.state["stage"] == "task":
                 if viewed_task != self.state["task"]["index"]:
-                    await self.request("POST", "/api/v1/me/view", action="view")  # the page opens the 3D view
+                    view = await self.request("POST", "/api/v1/me/view", action="view")  # the page opens the 3D view
+                    self.has_view = bool(view.get("available"))
                     viewed_task = self.state["task"]["index"]
                 await self.step()
             if self.state["stage"] == "questionnaire":
@@ -337,7 +434,8 @@ class Participant:
             self.results.completed += self.state["stage"] == "done"
         finally:
             stop.set()
-            await page
+            events.cancel()
+            await asyncio.gather(page, events, return_exceptions=True)
             await self.http.aclose()
 
     async def step(self) -> None:
@@ -345,14 +443,16 @@ class Participant:
         guard = {"task_index": state["task"]["index"], "step_kind": step["kind"], "step_index": step["index"]}
         if step["kind"] in ("practice", "demonstration"):
             frames: list[float] = []
-            reader = asyncio.create_task(self.read_live_view(frames))
+            # A robot without a view (trace) has no live view to read.
+            reader = asyncio.create_task(self.read_live_view(frames) if self.has_view else asyncio.sleep(0))
             try:
                 for obj in self.teacher.demonstrate(self.rng).events:
                     if obj in self.state["demonstration"]["placed"]:
                         continue
                     await self.pause()
                     self.state = await self.request("POST", "/api/v1/me/placements", {"object": obj, **guard})
-                    await self.wait_for_robot()  # the page keeps its buttons off while the arm moves
+                    # The page keeps its buttons off until the robot has reported the table and stopped moving.
+                    await self.until(lambda: self.state["demonstration"]["settled"] and not self.robot.get("moving"))
                 await self.pause()
                 self.state = await self.request("POST", "/api/v1/me/demonstration/finish", guard, action="finish")
             finally:
@@ -364,22 +464,12 @@ class Participant:
         started = time.perf_counter()
         self.state = await self.request("POST", "/api/v1/me/execution", guard)
         await self.watch(started)
-        while self.state["execution"]["status"] != "finished":
-            await asyncio.sleep(self.poll)
-            self.state = await self.request("GET", "/api/v1/me", action="GET me")
+        await self.until(lambda: self.state["execution"]["status"] == "finished")
         await self.pause()
         trace = [frozenset(x) for x in self.state["execution"]["trace"]]
         verdict = self.teacher.assess(trace, self.rng)
         self.state = await self.request("POST", "/api/v1/me/assessment", {"acceptable": verdict, **guard},
                                         action="assessment")
-
-    async def wait_for_robot(self) -> None:
-        """Until the robot has reported the table and stopped moving, read as the page does."""
-        while True:
-            await asyncio.sleep(self.poll)
-            robot = await self.request("GET", "/api/v1/me/robot", action="GET robot")
-            if not robot.get("moving"):
-                return
 
     async def read_live_view(self, frames: list[float]) -> None:
         """The page's live 3D view during a demonstration: viser's websocket through the app, timing each
@@ -462,7 +552,8 @@ def main(argv: list[str] | None = None) -> int:
                         help="robot worker processes per app process (TABLETEACH_ROBOT_WORKERS)")
     parser.add_argument("--robot-speed", type=float, default=1.0, help="1 = real time (an action takes ~5.6 s)")
     parser.add_argument("--think", type=float, default=3.0, help="mean seconds a person takes before each action")
-    parser.add_argument("--poll", type=float, default=1.0, help="seconds between the page's refreshes")
+    parser.add_argument("--poll", type=float, default=POLL_WITH_EVENTS_S,
+                        help="seconds between the page's safety-net refreshes while its event stream is open")
     parser.add_argument("--ramp", type=float, default=None, help="seconds over which participants arrive "
                         "(default: 0.5 s per participant, at most 60)")
     args = parser.parse_args(argv)
@@ -492,7 +583,7 @@ def main(argv: list[str] | None = None) -> int:
         study = httpx.post(f"{urls[0]}/api/v1/studies", json=spec, headers=headers, timeout=30).json()
         httpx.post(f"{urls[0]}/api/v1/studies/{study['id']}/open", headers=headers, timeout=30).raise_for_status()
         print(f"study: 2 demonstrations, 2 queries, 1 test; {args.participants} participants arriving over "
-              f"{ramp:.0f} s, think {args.think} s, page refresh {args.poll} s", flush=True)
+              f"{ramp:.0f} s, think {args.think} s, page tick {args.poll} s with change events", flush=True)
 
         cpu_before = [_process_tree_cpu(p.pid) for p in procs]
         db_cpu_before, xacts_before = db.cpu_seconds(), db.transactions()
@@ -513,10 +604,12 @@ def main(argv: list[str] | None = None) -> int:
     p99 = p99_by_action.get(worst, float("inf"))  # the target is every action's p99, so the worst one counts
     print(f"\n{results.completed}/{args.participants} sessions completed in {wall:.0f} s; {len(lat)} REST requests "
           f"({len(lat) / wall:.1f}/s)")
-    print(f"{'action':<14}{'n':>7}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}")
+    print(f"{'action':<14}{'n':>7}{'304s':>7}{'p50 ms':>9}{'p99 ms':>9}{'max ms':>9}")
     for action, xs in sorted(results.latencies.items()):
         a = np.array(xs) * 1000
-        print(f"{action:<14}{len(a):>7}{np.percentile(a, 50):>9.1f}{np.percentile(a, 99):>9.1f}{a.max():>9.1f}")
+        print(f"{action:<14}{len(a):>7}{results.not_modified.get(action, 0):>7}{np.percentile(a, 50):>9.1f}"
+              f"{np.percentile(a, 99):>9.1f}{a.max():>9.1f}")
+    print(f"requests per session: {len(lat) / args.participants:.0f}")
     print(f"all requests: p99 {p99_all:.0f} ms; the worst action's p99: {worst} {p99:.0f} ms")
     for i, (server, workers) in enumerate(cpu):
         print(f"app process {i}: {server + workers:.1f} CPU s ({100 * (server + workers) / wall:.0f}% of a core): "
@@ -560,8 +653,14 @@ def main(argv: list[str] | None = None) -> int:
     print(f"targets: every action's p99 < {TARGET_P99_MS:.0f} ms, fps >= {TARGET_FPS:.0f}, "
           f"stall <= {TARGET_STALL_S} s, "
           f"0 errors, all sessions done: {'met' if ok else 'MISSED'}")
+    from bench_learner import learner_seconds_per_participant  # benchmarks/ is the script's folder
+
+    learner = learner_seconds_per_participant()
+    per_session = (server_cpu + worker_cpu) / args.participants
+    print(f"the learner's own compute for one participant: {1000 * learner:.0f} ms; serving a session costs "
+          f"{per_session / learner:.0f} times that")
     print(f"participants {args.participants} processes {args.processes} rest_p99_ms {p99:.0f} min_fps {min_fps:.1f} "
-          f"errors {len(results.errors)}")
+          f"errors {len(results.errors)} cpu_per_session_s {per_session:.2f} learner_s {learner:.3f}")
     return 0 if ok else 1
 
 

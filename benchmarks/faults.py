@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import os
 import random
+import shutil
 import signal
 import sqlite3
 import subprocess
@@ -341,7 +342,10 @@ def main(argv: list[str] | None = None) -> int:
                 result = run_session(servers, study, fault, rng, args.lock_seconds, db_path, restart)
             except Exception as exc:  # noqa: BLE001 - a stranded participant is the finding, not a crash
                 counts["stranded"] += 1
-                print(f"seed {seed:3d} {fault:17s} STRANDED: {exc}", flush=True)
+                kept = Path(tempfile.mkdtemp(prefix=f"tableteach-faults-seed{seed}-"))
+                for log in folder.glob("*.log"):
+                    shutil.copy(log, kept / log.name)
+                print(f"seed {seed:3d} {fault:17s} STRANDED: {exc} (server logs kept in {kept})", flush=True)
                 continue
             counts[fault] += 1
             counts["finished" if result["stage"] in ("done", "questionnaire") else "not_finished"] += 1

@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from .clips import ClipCache, clip_folder
 from .recordings import RecordingId
 from .work_out import StudioSource, work_out_execution
 
@@ -24,21 +25,23 @@ log = logging.getLogger("tableteach.sim.execution_worker")
 WORKER_NICENESS = 10
 
 
-def answer(studio: StudioSource, request: dict[str, Any]) -> dict[str, Any]:
+def answer(studio: StudioSource, request: dict[str, Any], clips: ClipCache | None = None) -> dict[str, Any]:
     """The plan for one request, as JSON-ready data."""
+    if clips is not None:
+        clips.folder = clip_folder(request["data_dir"])  # the server's clips, on its data folder
     plan = work_out_execution(studio, Path(request["data_dir"]), int(request["seed"]), list(request["events"]),
-                              RecordingId.parse(request["recording"]), float(request["rate"]))
+                              RecordingId.parse(request["recording"]), float(request["rate"]), clips)
     return {"ok": True, "events": list(plan.events), "trace": [sorted(labels) for labels in plan.trace],
             "action_ends": list(plan.action_ends), "viewable": plan.viewable}
 
 
 def serve(requests: Any, replies: Any) -> None:
     """Answer each request line until the input ends."""
-    studio = StudioSource()
+    studio, clips = StudioSource(), ClipCache()
     try:
         for line in requests:
             try:
-                reply = answer(studio, json.loads(line))
+                reply = answer(studio, json.loads(line), clips)
             except (ValueError, KeyError, TypeError) as exc:  # a request the robot refuses (e.g. an unknown object)
                 reply = {"ok": False, "invalid": True, "error": str(exc)}
             except Exception as exc:  # noqa: BLE001 - reported to the server, which logs it and works it out itself

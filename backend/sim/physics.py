@@ -8,6 +8,7 @@ grasp activates the object's weld. Labels are read from the physical state, neve
 from __future__ import annotations
 
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -28,6 +29,27 @@ REST_SPEED = 0.05  # m/s below which an object counts as at rest
 FINGER_OPEN = 0.04
 DROP_XY = (-0.3, 0.25)  # over the floor behind the robot, clear of both tables
 JITTER_XY, JITTER_YAW = 0.008, 0.06  # seeded perturbation of the start poses on Table A
+STATE = mujoco.mjtState.mjSTATE_INTEGRATION  # everything mj_step reads (time, qpos, qvel, ctrl, warmstart, ...)
+
+
+@dataclass(frozen=True)
+class Clip:
+    """One placement as the world simulated it: the frames it recorded, the labels after it, and what puts a
+    world at its end again: the integration state before its last control tick (replaying that one tick
+    rebuilds every derived quantity exactly), the grasp welds' parameters and the frame clock."""
+
+    obj: str
+    times: np.ndarray  # (n,) the frames recorded during the placement
+    poses: np.ndarray  # (n, B, 7)
+    labels: frozenset[str]
+    before_last_tick: np.ndarray
+    eq_data: np.ndarray
+    next_frame: float
+
+    @property
+    def nbytes(self) -> int:
+        """Memory the clip holds (its arrays)."""
+        return self.times.nbytes + self.poses.nbytes + self.before_last_tick.nbytes + self.eq_data.nbytes
 
 
 def _min_jerk(n: int) -> np.ndarray:
@@ -47,11 +69,15 @@ def _rot_z(yaw: float, v: np.ndarray) -> np.ndarray:
 class MujocoWorld(MoveLog):
     """TableWorld backed by MuJoCo physics; not thread-safe (one caller at a time)."""
 
+    _held: str | None  # the object in the hand
+
     def __init__(self, seed: int = 0, scene: Path = SCENE_XML) -> None:
+        self.scene = str(scene)
         self.model, self.layout = load_scene(scene)
         self.data = mujoco.MjData(self.model)
         self._substeps = max(1, round(CONTROL_DT / self.model.opt.timestep))
         self._body_names = tuple(self.model.body(b).name for b in self.layout.moving_bodies)
+        self._before_tick = np.zeros(mujoco.mj_stateSize(self.model, STATE))
         self.reset(seed)
 
     # -- TableWorld ---------------------------------------------------------------------------
@@ -95,11 +121,46 @@ class MujocoWorld(MoveLog):
     def _simulate(self, obj: str, drop: bool) -> Iterator[tuple[float, np.ndarray]]:
         yield from self._run(self._plan(obj, drop), obj)
         self._trace.append(self.labels())
+        self._done.append((obj, drop))
+
+    # -- clips ----------------------------------------------------------------------------------
+    @property
+    def history(self) -> tuple[str, int, tuple[tuple[str, bool], ...]] | None:
+        """(scene, seed, (object, dropped) per finished action): what fixes the state, physics being
+        deterministic; None while an action is under way."""
+        if len(self._done) != len(self._moved):
+            return None
+        return self.scene, self.seed, tuple(self._done)
+
+    def place_clip(self, obj: str) -> Clip:
+        """Place `obj` (as place()) and return the placement as a clip that replay() can apply to another world."""
+        start = len(self._times)
+        self.place(obj)
+        return Clip(obj, np.array(self._times[start:]), np.array(self._poses[start:]).reshape(-1, len(self.bodies), 7),
+                    self._trace[-1], self._before_tick.copy(), self.model.eq_data.copy(), self._next_frame)
+
+    def replay(self, clip: Clip) -> frozenset[str]:
+        """Apply a clip placed on a world with this history: the same frames, labels and state, without simulating
+        the placement (one control tick is stepped again); the labels after it."""
+        m, d = self.model, self.data
+        self._start_move(clip.obj)
+        mujoco.mj_setState(m, d, clip.before_last_tick, STATE)
+        m.eq_data[:] = clip.eq_data
+        mujoco.mj_step(m, d, self._substeps)
+        self._before_tick[:] = clip.before_last_tick
+        self._times.extend(clip.times.tolist())
+        self._poses.extend(clip.poses)
+        self._next_frame = clip.next_frame
+        self._held = None  # a placement ends with its object let go
+        self._trace.append(clip.labels)
+        self._done.append((clip.obj, False))
+        return clip.labels
 
     def reset(self, seed: int = 0) -> None:
         """Objects back on Table A with seeded jitter, arm at home, weld off, trace restarted."""
         m, d, lay = self.model, self.data, self.layout
         mujoco.mj_resetData(m, d)
+        self.seed = seed
         rng = np.random.default_rng(seed)
         for o in lay.objects:
             adr = lay.qpos_adr[o]
@@ -110,8 +171,9 @@ class MujocoWorld(MoveLog):
         d.ctrl[lay.arm_ctrl] = arm.HOME
         d.ctrl[lay.finger_ctrl] = FINGER_OPEN
         mujoco.mj_forward(m, d)
-        self._held: str | None = None
+        self._held = None
         self._moved: list[str] = []
+        self._done: list[tuple[str, bool]] = []  # finished actions: (object, dropped)
         self._times: list[float] = []
         self._poses: list[np.ndarray] = []
         self._record()
@@ -252,6 +314,7 @@ class MujocoWorld(MoveLog):
 
     def _step(self) -> bool:
         """One control tick; True if it recorded a frame."""
+        mujoco.mj_getState(self.model, self.data, self._before_tick, STATE)  # for a clip ending with this tick
         mujoco.mj_step(self.model, self.data, self._substeps)
         # Frames follow a fixed 1/30 s schedule, each taken at the first control tick after its time.
         if self.data.time >= self._next_frame - 1e-6:

@@ -8,6 +8,8 @@ removes all of a participant's files (for erasure)."""
 from __future__ import annotations
 
 import json
+import os
+import threading
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,7 +18,7 @@ from .recording import Recording
 from ..recording_store import FOLDER, STEP_KINDS, FileRecordingStore, RecordingId, check_uid
 
 __all__ = ["FOLDER", "STEP_KINDS", "RecordingId", "SavedRecording", "check_uid", "delete_recordings",
-           "list_recordings", "load_recording", "save_recording"]
+           "list_recordings", "load_recording", "save_meta", "save_recording"]
 
 
 @dataclass(frozen=True)
@@ -30,23 +32,40 @@ class SavedRecording:
     action_ends: tuple[float, ...]  # recording time (s) at which each action ended
 
 
-def _paths(data_dir: Path | str, rid: RecordingId) -> tuple[Path, Path]:
+def recording_paths(data_dir: Path | str, rid: RecordingId) -> tuple[Path, Path]:
+    """The step's .npz and .json paths."""
     base = Path(data_dir) / FOLDER / rid.name
     return base.with_suffix(".npz"), base.with_suffix(".json")
 
 
 def save_recording(data_dir: Path | str, saved: SavedRecording) -> Path:
-    """Write the step's .npz and .json (replacing an earlier save of the same step); the .npz path."""
-    npz, meta = _paths(data_dir, saved.id)
+    """Write the step's .npz and .json (replacing an earlier save of the same step); the .npz path.
+
+    The .npz is written aside and renamed over the old one, never through it: that may be a link to motion other
+    participants share (tableteach.sim.motion_store)."""
+    npz, _meta = recording_paths(data_dir, saved.id)
     npz.parent.mkdir(parents=True, exist_ok=True)
-    saved.recording.save(npz)
-    meta.write_text(json.dumps({
-        "participant_uid": saved.id.participant_uid, "task_index": saved.id.task_index,
-        "step_kind": saved.id.step_kind, "step_index": saved.id.step_index,
-        "events": list(saved.events), "trace": [sorted(labels) for labels in saved.trace],
-        "action_ends": list(saved.action_ends), "duration": saved.recording.duration,
-    }, indent=1))
+    tmp = npz.with_name(f".{npz.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    saved.recording.save(tmp)
+    os.replace(tmp, npz)
+    save_meta(data_dir, saved.id, saved.events, saved.trace, saved.action_ends, saved.recording.duration)
     return npz
+
+
+def save_meta(data_dir: Path | str, rid: RecordingId, events: tuple[str, ...], trace: tuple[frozenset[str], ...],
+              action_ends: tuple[float, ...], duration: float) -> Path:
+    """Write the step's .json (what happened), the participant's own file; its path."""
+    _npz, meta = recording_paths(data_dir, rid)
+    meta.parent.mkdir(parents=True, exist_ok=True)
+    tmp = meta.with_name(f".{meta.name}.{os.getpid()}.{threading.get_ident()}.tmp")
+    tmp.write_text(json.dumps({
+        "participant_uid": rid.participant_uid, "task_index": rid.task_index,
+        "step_kind": rid.step_kind, "step_index": rid.step_index,
+        "events": list(events), "trace": [sorted(labels) for labels in trace],
+        "action_ends": list(action_ends), "duration": duration,
+    }, indent=1))
+    os.replace(tmp, meta)
+    return meta
 
 
 def list_recordings(data_dir: Path | str, participant_uid: str | None = None) -> list[RecordingId]:
@@ -65,7 +84,7 @@ def list_recordings(data_dir: Path | str, participant_uid: str | None = None) ->
 
 def load_recording(data_dir: Path | str, rid: RecordingId) -> SavedRecording:
     """Read a saved step; FileNotFoundError naming the path if it was never saved."""
-    npz, meta = _paths(data_dir, rid)
+    npz, meta = recording_paths(data_dir, rid)
     if not npz.exists() or not meta.exists():
         raise FileNotFoundError(f"no recording of {rid.name} under {Path(data_dir) / FOLDER}: "
                                 f"expected {npz} and {meta}")

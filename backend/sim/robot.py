@@ -8,6 +8,9 @@ plays the recorded frames to the browsers watching that table (nobody watching: 
 pose). The robot's own executions are worked out whole (plan_execution), in robot worker processes when
 `workers` > 0 (tableteach.sim.worker_pool), and saved as a .viser file that the browser plays, so no
 process streams them. Labels always come from MujocoWorld.labels(), MuJoCo's labeling function.
+Every table of a task starts alike (table_seed), so motion is simulated once: placements seen before come from
+clips (tableteach.sim.clips, in memory and as files every process shares) and executions seen before are
+linked to the step from a shared motion (tableteach.sim.motion_store).
 Threads: only the animator, started by start() and stopped by shutdown() (the runtime calls both); viser's
 own threads belong to its server. See docs/concurrency.md.
 """
@@ -28,13 +31,14 @@ import numpy as np
 from ..core.clauses import humanize
 from ..recording_store import RecordingId
 from ..robot import ExecutionPlan, RobotActivity, ViewAddress
+from .clips import CLIP_CACHE_BYTES, ClipCache, clip_folder, warm
 from .motion_file import viser_path
 from .physics import MujocoWorld
 from .recording import Recording
 from .recordings import SavedRecording, save_recording
 from .view_hub import ViewHub
 from .world import OBJECTS
-from .work_out import StudioSource, work_out_execution
+from .work_out import StudioSource, known_execution, work_out_execution
 from .worker_pool import ExecutionWorkers, WorkerFailed
 
 log = logging.getLogger(__name__)
@@ -46,8 +50,22 @@ REAP_EVERY_SECONDS = 5.0
 
 
 def table_seed(key: str) -> int:
-    """The start-pose jitter seed of a table: fixed per key, so a restarted server rebuilds the same scene."""
-    return zlib.crc32(key.encode()) % (2**31)
+    """The start-pose jitter seed of a table: the same for every participant's table of one task (the key's part
+    after its last "/", the task index: services.state.table_key) and fixed across restarts, so a restarted
+    server rebuilds the same scene and the same table and plan give the same motion, which participants then
+    share (placement clips, shared recordings)."""
+    return zlib.crc32(f"task-{key.rsplit('/', 1)[-1]}".encode()) % (2**31)
+
+
+def warm_tables(data_dir: Path | str, tasks: Sequence[int]) -> dict[str, int]:
+    """Simulate, once per data folder, every placement the tables of these task indices can ask for (their clip
+    files), so that no participant's placement or execution waits for its physics; what was simulated now."""
+    cache = ClipCache(folder=clip_folder(data_dir))
+    simulated = known = 0
+    for task in tasks:
+        new, had = warm(cache, table_seed(f"0/{task}"))
+        simulated, known = simulated + new, known + had
+    return {"simulated": simulated, "already_kept": known}
 
 
 @dataclass
@@ -116,7 +134,7 @@ class MujocoRobot:
     shows_view = True
 
     def __init__(self, *, speed: float = 1.0, data_dir: Path | str = "var/data", workers: int = 0,
-                 idle_seconds: float = IDLE_WORLD_SECONDS) -> None:
+                 idle_seconds: float = IDLE_WORLD_SECONDS, clip_bytes: int = CLIP_CACHE_BYTES) -> None:
         if speed <= 0:
             raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.0")
         self.speed = speed
@@ -126,6 +144,7 @@ class MujocoRobot:
         self._tables: dict[str, _Table] = {}
         self._lock = threading.Lock()
         self._studio = StudioSource()  # executions worked out in this process (workers == 0)
+        self.clips = ClipCache(clip_bytes, clip_folder(self.data_dir))  # placements simulated once, by any process
         self._workers = ExecutionWorkers(workers) if workers > 0 else None
         self._plans: dict[tuple[str, tuple[str, ...], str, float], ExecutionPlan] = {}  # the last few
         self._hub: ViewHub | None = None
@@ -156,6 +175,7 @@ class MujocoRobot:
         for table in tables:
             with table.lock:
                 table.drop_world()
+        self.clips.clear()
         if hub is not None:
             hub.close()
         if self._workers is not None:
@@ -180,7 +200,7 @@ class MujocoRobot:
         with table.lock:
             table.active = True
             start = len(table.world.recording) - 1
-            labels = table.world.place(obj)  # PlacementError (a ValueError) for an unknown or moved object
+            labels = self.clips.place(table.world, obj)  # PlacementError (a ValueError): unknown or moved object
             table.action_ends.append(float(table.world.data.time))
             if self._watchers(key) > 0:
                 table.pending.append(_Motion(f"The robot is placing the {humanize(obj)}",
@@ -201,7 +221,7 @@ class MujocoRobot:
             self._clear(table)
             table.active = True
             for obj in placed:
-                table.world.place(obj)
+                self.clips.place(table.world, obj)
                 table.action_ends.append(float(table.world.data.time))
             self._show_still(table)
         self._refresh(table)
@@ -228,7 +248,8 @@ class MujocoRobot:
 
         Nothing is shown live: the browser plays the .viser file, at `speed` (the study's robot_speed) on top of
         the robot's own; the plan's action ends are divided alike, and the saved recording keeps real time. An
-        execution already worked out (its file still there) is not simulated again.
+        execution already worked out, for this step or for anyone's with the same table, objects and rate (a
+        shared motion, tableteach.sim.motion_store), is not simulated again.
         """
         if speed <= 0:
             raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.5")
@@ -239,16 +260,17 @@ class MujocoRobot:
             known = self._plans.get(memo)
         if known is not None and viser_path(self.data_dir, rid).exists():
             return known
-        worked = None
         rate = self.speed * speed
-        if self._workers is not None:
+        seed = table_seed(key)
+        worked = known_execution(self.data_dir, seed, events, rid, rate)  # no worker woken for a shared motion
+        if worked is None and self._workers is not None:
             try:
-                worked = self._workers.run(self.data_dir, table_seed(key), events, rid, rate)
+                worked = self._workers.run(self.data_dir, seed, events, rid, rate)
             except WorkerFailed:  # e.g. no process can be started: slower here, but the participant carries on
                 log.warning("the robot workers failed on %s; working it out in the server process", rid.name,
                             exc_info=True)
         if worked is None:
-            worked = work_out_execution(self._studio, self.data_dir, table_seed(key), events, rid, rate)
+            worked = work_out_execution(self._studio, self.data_dir, seed, events, rid, rate, self.clips)
         with self._lock:
             if len(self._plans) >= 1024:
                 self._plans.pop(next(iter(self._plans)))

@@ -1,7 +1,8 @@
 """Working a robot execution out whole: simulate it on a fresh table, save its recording and its .viser file.
 
-Pure given (table seed, events): any process, or a robot worker process (tableteach.sim.execution_worker),
-computes the same plan and the same files.
+Pure given (table seed, events, rate): any process, or a robot worker process (tableteach.sim.execution_worker),
+computes the same plan and the same files, so an execution worked out before (by any participant, in any
+process) is not simulated again: its shared motion (tableteach.sim.motion_store) is linked to the step.
 """
 
 from __future__ import annotations
@@ -12,31 +13,59 @@ from pathlib import Path
 
 from ..core.clauses import humanize
 from ..robot import ExecutionPlan
-from .motion_file import Studio, viser_path, write_atomically
+from .clips import ClipCache
+from .motion_file import Studio
+from .motion_store import MotionStore, motion_digest
 from .physics import MujocoWorld
-from .recordings import RecordingId, SavedRecording, save_recording
-from .world import check_sequence
+from .recordings import RecordingId, SavedRecording
+from .scene import SCENE_XML
+from .world import OBJECTS, check_sequence
+
+
+def captions(events: Sequence[str]) -> list[str]:
+    """What the view says while each object is placed."""
+    return [f"The robot is placing the {humanize(obj)} ({i + 1} of {len(events)})" for i, obj in enumerate(events)]
+
+
+def execution_digest(seed: int, events: Sequence[str], rate: float) -> str:
+    """The name of this execution's shared motion."""
+    return motion_digest(SCENE_XML, seed, events, rate, captions(events))
+
+
+def known_execution(data_dir: Path, seed: int, events: Sequence[str], rid: RecordingId,
+                    rate: float) -> ExecutionPlan | None:
+    """The plan of an execution worked out before, its motion given to `rid`; None if it never was."""
+    check_sequence(tuple(events), OBJECTS)
+    return MotionStore(data_dir).give(execution_digest(seed, events, rate), rid)
 
 
 def work_out_execution(studio_of: StudioSource, data_dir: Path, seed: int, events: Sequence[str],
-                       rid: RecordingId, rate: float) -> ExecutionPlan:
-    """Simulate `events` on a table started from `seed`, save the recording and a .viser file played at `rate`."""
+                       rid: RecordingId, rate: float, clips: ClipCache | None = None) -> ExecutionPlan:
+    """Simulate `events` on a table started from `seed` (placements in `clips` from there), save the recording
+    and a .viser file played at `rate`; an execution worked out before is only linked to `rid`."""
     events = tuple(events)
-    world = MujocoWorld(seed)
+    known = known_execution(data_dir, seed, events, rid, rate)  # refuses a bad sequence before anything moves
+    if known is not None:
+        return known
+    world = MujocoWorld(seed, SCENE_XML)
     try:
-        check_sequence(events, world.objects)  # refuse the whole request before anything moves
+        check_sequence(events, world.objects)
         start = float(world.data.time)
         starts, ends = [], []
         for obj in events:
             starts.append(float(world.data.time))
-            world.place(obj)
+            if clips is None:
+                world.place(obj)
+            else:
+                clips.place(world, obj)
             ends.append(float(world.data.time))
         recording = world.recording
-        save_recording(data_dir, SavedRecording(rid, recording, tuple(world.placed), tuple(world.trace), tuple(ends)))
-        captions = [(t0, f"The robot is placing the {humanize(obj)} ({i + 1} of {len(events)})")
-                    for i, (t0, obj) in enumerate(zip(starts, events, strict=True))]
-        write_atomically(viser_path(data_dir, rid), studio_of(world).render(recording, captions, speed=rate))
-        return ExecutionPlan(events, tuple(world.trace), tuple((end - start) / rate for end in ends), viewable=True)
+        saved = SavedRecording(rid, recording, tuple(world.placed), tuple(world.trace), tuple(ends))
+        timed = list(zip(starts, captions(events), strict=True))
+        playable = studio_of(world).render(recording, timed, speed=rate)
+        plan = ExecutionPlan(events, tuple(world.trace), tuple((end - start) / rate for end in ends), viewable=True)
+        MotionStore(data_dir).keep(execution_digest(seed, events, rate), saved, playable, plan)
+        return plan
     finally:
         world.close()
 
@@ -55,7 +84,7 @@ class StudioSource:
             return self._studio
 
     def close(self) -> None:
-        """Stop the studio's hidden viser server, if one was started."""
+        """Forget the studio (its hidden viser server was closed once it had the scene's snapshot)."""
         with self._lock:
             if self._studio is not None:
                 self._studio.close()

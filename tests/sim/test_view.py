@@ -98,3 +98,16 @@ def test_capsule_mesh_is_closed_and_sized():
     assert np.isclose(vertices[:, 2].max(), 0.24) and np.isclose(vertices[:, 2].min(), -0.24)
     assert np.isclose(np.hypot(vertices[:, 0], vertices[:, 1]).max(), 0.04)
     assert faces.max() < len(vertices)
+
+
+def test_each_object_carries_its_name_as_a_label_in_recordings_too(world):
+    from tableteach.sim import viser_file
+
+    view = SceneView(world.model, clickable=())
+    try:
+        recorded = viser_file.decode(view.server.get_scene_serializer().serialize())
+    finally:
+        view.close()
+    labels = {m["name"]: m["props"]["text"] for _t, m in recorded.messages if m["type"] == "LabelMessage"}
+    for obj in OBJECTS:  # a child of the object's frame: it moves with the object
+        assert labels[f"/{obj}/label"] == obj.replace("_", " ")
