@@ -11,7 +11,7 @@ import io
 import time
 import uuid
 import zipfile
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Self
@@ -69,15 +69,20 @@ class _Base:
         self.close()
 
     def _request(self, method: str, path: str, *, json: Any = None, key: str | None = None,
-                 params: dict[str, Any] | None = None) -> httpx.Response:
+                 params: dict[str, Any] | None = None, csv: str | None = None,
+                 extra_headers: dict[str, str] | None = None) -> httpx.Response:
         headers = {"Authorization": f"Bearer {self.token}"} if self.token else {}
+        headers.update(extra_headers or {})
         if key is not None:
             headers["Idempotency-Key"] = key
-        repeatable = method in ("GET", "DELETE") or key is not None
+        if csv is not None:
+            headers["Content-Type"] = "text/csv"
+        repeatable = method in ("GET", "DELETE", "PUT") or key is not None  # a PUT replaces: repeating is safe
         for attempt in range(RETRIES):
             started = time.perf_counter()
             try:
-                response = self.http.request(method, path, json=json, headers=headers, params=params)
+                response = self.http.request(method, path, json=json, headers=headers, params=params,
+                                             content=None if csv is None else csv.encode())
             except httpx.TransportError:
                 # Safe to resend: GETs change nothing and POSTs carry the same Idempotency-Key.
                 if attempt == RETRIES - 1 or not repeatable:
@@ -110,18 +115,27 @@ class _Base:
 class ParticipantClient(_Base):
     """The participant API, every endpoint (the token comes from join())."""
 
+    _held_state: tuple[str, dict[str, Any]] | None = None  # the last state and its ETag, for conditional reads
+
     def join(self, study_id: str, *, prolific_pid: str | None = None, session_id: str | None = None,
              external_study_id: str | None = None) -> dict[str, Any]:
         """Join a study; remembers the token. Rejoining with a prolific_pid needs the same session_id (or client)."""
         body = {k: v for k, v in (("prolific_pid", prolific_pid), ("session_id", session_id),
                                   ("study_id", external_study_id)) if v}
         out = self._request("POST", f"/api/v1/studies/{study_id}/join", json=body).json()
-        self.token = out["token"]
+        self.token, self._held_state = out["token"], None
         return out
 
     def state(self) -> dict[str, Any]:
-        """The current state."""
-        return self._json("GET", "/api/v1/me")
+        """The current state: a conditional read, so an unchanged state (304) returns the last answer again."""
+        held = self._held_state
+        response = self._request("GET", "/api/v1/me", extra_headers={"If-None-Match": held[0]} if held else None)
+        if response.status_code == 304 and held:
+            return held[1]
+        state: dict[str, Any] = response.json()
+        tag = response.headers.get("etag")
+        self._held_state = (tag, state) if tag else None
+        return state
 
     def consent(self, version: str, agree: bool = True) -> dict[str, Any]:
         """Agree to (or decline) the consent text of this version."""
@@ -167,6 +181,10 @@ class ParticipantClient(_Base):
         """The 3D view of the current step: {available, url}."""
         return self._json("POST", "/api/v1/me/view", idempotent=False)
 
+    def top_view(self) -> dict[str, Any]:
+        """The 2D view: the tables from above and the current step's recorded motion, if any."""
+        return self._json("GET", "/api/v1/me/top-view")
+
     def robot(self) -> dict[str, Any]:
         """Whether the robot is moving and what it is doing."""
         return self._json("GET", "/api/v1/me/robot")
@@ -179,6 +197,10 @@ class ParticipantClient(_Base):
         """Free the page's lease at once."""
         self._request("POST", "/api/v1/me/tab/release", json={"tab_id": tab_id})
 
+    def signal(self, kind: str, field: str | None = None) -> None:
+        """One signal of the page: tab_hidden, window_blur, paste (field: the item pasted into) or still_here."""
+        self._request("POST", "/api/v1/me/signals", json={"kind": kind, **({"field": field} if field else {})})
+
 
 class ExperimenterClient(_Base):
     """The experimenter API, every endpoint (token: the server's experimenter secret)."""
@@ -190,9 +212,29 @@ class ExperimenterClient(_Base):
         """The server's health check."""
         return self._json("GET", "/healthz")
 
-    def list_studies(self) -> list[dict[str, Any]]:
-        """Every study, newest first."""
-        return self._json("GET", "/api/v1/studies")
+    def list_studies(self, *, include_archived: bool = False) -> list[dict[str, Any]]:
+        """Every study, newest first (archived ones only if asked for)."""
+        return self._json("GET", "/api/v1/studies", params={"include_archived": include_archived})
+
+    def delete_study(self, study_id: str) -> None:
+        """Delete a study without participants (409 if it has any: archive it instead)."""
+        self._request("DELETE", self._study(study_id))
+
+    def archive_study(self, study_id: str) -> dict[str, Any]:
+        """Hide a study from the list (an open one is closed first)."""
+        return self._json("POST", self._study(study_id, "/archive"), idempotent=False)
+
+    def unarchive_study(self, study_id: str) -> dict[str, Any]:
+        """Show an archived study in the list again."""
+        return self._json("POST", self._study(study_id, "/unarchive"), idempotent=False)
+
+    def statistics(self, study_id: str, *, include_pilot: bool = False) -> dict[str, Any]:
+        """Funnel by stage, completion times and condition x task-order counts."""
+        return self._json("GET", self._study(study_id, "/statistics"), params={"include_pilot": include_pilot})
+
+    def instruments(self) -> list[dict[str, Any]]:
+        """The standard questionnaires (items, scoring, citations)."""
+        return self._json("GET", "/api/v1/instruments")
 
     def get_study(self, study_id: str) -> dict[str, Any]:
         """One study."""
@@ -252,6 +294,11 @@ class ExperimenterClient(_Base):
         """A participant's belief summary."""
         return self._json("GET", self._study(study_id, f"/participants/{int(participant_id)}/belief"))
 
+    def what_if(self, study_id: str, participant_id: int, learners: list[str] | None = None) -> dict[str, Any]:
+        """A participant's recorded data replayed through other learners (each a spec such as "flip=0.1")."""
+        return self._json("GET", self._study(study_id, f"/participants/{int(participant_id)}/what-if"),
+                          params={"learner": list(learners or [])})
+
     def live(self, study_id: str, *, dropout_minutes: float | None = None) -> dict[str, Any]:
         """The dashboard's live table."""
         params = {} if dropout_minutes is None else {"dropout_minutes": dropout_minutes}
@@ -285,6 +332,84 @@ class ExperimenterClient(_Base):
         """exports.zip: every CSV, the codebook, datapackage.json and study.json."""
         return self._request("GET", self._study(study_id, "/exports/exports.zip"),
                              params={"include_pilot": include_pilot}).content
+
+    # Reconciliation with Prolific
+
+    def upload_submissions(self, study_id: str, csv_text: str) -> dict[str, Any]:
+        """Upload Prolific's submissions export (CSV text); it replaces the earlier upload."""
+        return self._request("PUT", self._study(study_id, "/prolific/submissions"), csv=csv_text).json()
+
+    def reconciliation(self, study_id: str) -> dict[str, Any]:
+        """Per Prolific id: Prolific's status against ours, with mismatches in words."""
+        return self._json("GET", self._study(study_id, "/prolific/reconciliation"))
+
+    def bonus_rule(self, study_id: str) -> dict[str, Any]:
+        """The study's bonus rule: {amounts: {outcome: amount}}."""
+        return self._json("GET", self._study(study_id, "/prolific/bonus-rule"))
+
+    def set_bonus_rule(self, study_id: str, amounts: dict[str, float]) -> dict[str, Any]:
+        """Set the bonus per outcome (outcomes left out get none)."""
+        return self._json("PUT", self._study(study_id, "/prolific/bonus-rule"), {"amounts": amounts})
+
+    def bonus_file(self, study_id: str) -> str:
+        """The bulk-bonus file from the rule: lines "participant id,amount"."""
+        return self._request("GET", self._study(study_id, "/prolific/bonuses.csv")).text
+
+    # Accounts and the audit log
+
+    def login(self, name: str, password: str) -> dict[str, Any]:
+        """Log in with a name and password; from now on this client uses the 12-hour token it gets."""
+        out = self._json("POST", "/api/v1/login", {"name": name, "password": password}, idempotent=False)
+        self.token = out["token"]
+        return out
+
+    def whoami(self) -> dict[str, Any]:
+        """The name and role behind this client's token."""
+        return self._json("GET", "/api/v1/whoami")
+
+    def change_password(self, current: str, new: str) -> dict[str, Any]:
+        """Change the logged-in person's own password (their other dashboard logins end)."""
+        return self._json("POST", "/api/v1/password", {"current_password": current, "new_password": new},
+                          idempotent=False)
+
+    def people(self) -> list[dict[str, Any]]:
+        """Every account (owner only)."""
+        return self._json("GET", "/api/v1/accounts")
+
+    def add_person(self, name: str, role: str, password: str | None = None) -> dict[str, Any]:
+        """Create an account with a role (owner only)."""
+        return self._json("POST", "/api/v1/accounts", {"name": name, "role": role, "password": password},
+                          idempotent=False)
+
+    def disable_person(self, name: str) -> dict[str, Any]:
+        """Disable an account: its tokens stop at once (owner only)."""
+        return self._json("POST", f"/api/v1/accounts/{quote(name, safe='')}/disable", idempotent=False)
+
+    def set_password(self, name: str, password: str) -> dict[str, Any]:
+        """Set a person's password (owner only); their dashboard logins end."""
+        return self._json("POST", f"/api/v1/accounts/{quote(name, safe='')}/password", {"password": password},
+                          idempotent=False)
+
+    def issue_token(self, name: str, *, label: str = "api", days: float = 90) -> dict[str, Any]:
+        """A new API token for a person (owner only): {token, id, expires_at, ...}; the token is shown only here."""
+        return self._json("POST", f"/api/v1/accounts/{quote(name, safe='')}/tokens", {"label": label, "days": days},
+                          idempotent=False)
+
+    def tokens(self) -> list[dict[str, Any]]:
+        """Every API token's record, never the token (owner only)."""
+        return self._json("GET", "/api/v1/accounts/all-tokens")
+
+    def revoke_token(self, token_id: int) -> dict[str, Any]:
+        """Revoke an API token (owner only)."""
+        return self._json("DELETE", f"/api/v1/accounts/tokens/{int(token_id)}")
+
+    def audit(self, *, limit: int = 1000) -> list[dict[str, Any]]:
+        """The audit log, newest first."""
+        return self._json("GET", "/api/v1/audit", params={"limit": limit})
+
+    def audit_csv(self) -> str:
+        """The whole audit log as CSV, oldest first."""
+        return self._request("GET", "/api/v1/audit.csv").text
 
     def export_all(self, study_id: str, out_dir: str | Path, *, include_pilot: bool = False) -> dict[str, int]:
         """Every file of exports.zip into a folder (the CSVs, codebook.csv, study.json...); rows per CSV (header
@@ -460,6 +585,17 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
     return run
 
 
+MAX_POLL_SECONDS = 0.5  # a scripted teacher waiting on the robot reads its state at least this often
+
+
+def _poll_waits(first: float) -> Iterator[float]:
+    """Pauses between reads while waiting on the robot: `first`, doubling up to MAX_POLL_SECONDS."""
+    wait = first
+    while True:
+        yield wait
+        wait = min(MAX_POLL_SECONDS, wait * 2)
+
+
 def _teach_step(api: ParticipantClient, state: dict[str, Any], teachers: list[SimulatedTeacher],
                 rng: np.random.Generator, run: TeacherRun, poll_seconds: float) -> dict[str, Any]:
     """One practice trial, demonstration, query or test."""
@@ -472,8 +608,9 @@ def _teach_step(api: ParticipantClient, state: dict[str, Any], teachers: list[Si
         events = [e for e in teacher.demonstrate(rng).events if e not in state["demonstration"]["placed"]]
         for obj in events:
             state = api.place(obj, guard)
+        waits = _poll_waits(poll_seconds)
         while not state["demonstration"].get("settled", True):  # the robot reports the table after its physics
-            time.sleep(poll_seconds)
+            time.sleep(next(waits))
             state = api.state()
         trace = state["demonstration"]["trace"]
         state = api.finish(guard)
@@ -482,8 +619,9 @@ def _teach_step(api: ParticipantClient, state: dict[str, Any], teachers: list[Si
         return state
     if state["execution"]["status"] == "not_started":
         state = api.execute(guard)
+    waits = _poll_waits(poll_seconds)
     while state["execution"]["status"] != "finished":
-        time.sleep(poll_seconds)
+        time.sleep(next(waits))
         state = api.state()
     execution = state["execution"]
     trace = [frozenset(labels) for labels in execution["trace"]]

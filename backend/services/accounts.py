@@ -26,6 +26,8 @@ LOGIN_HOURS = 12
 MAX_TOKEN_DAYS = 366
 READ_METHODS = frozenset({"GET", "HEAD", "OPTIONS"})
 ACCOUNTS_PATH = "/api/v1/accounts"
+PASSWORD_PATH = "/api/v1/password"  # a person changes their own password: every role may
+LOGIN_LABEL = "dashboard login"
 _hasher = PasswordHasher()  # argon2id with the library's recommended parameters
 
 
@@ -35,6 +37,7 @@ class Actor:
 
     name: str
     role: str
+    token_id: int | None = None  # the personal API token the request came with (None: the server key)
 
 
 BOOTSTRAP = Actor(BOOTSTRAP_NAME, "owner")
@@ -42,8 +45,8 @@ BOOTSTRAP = Actor(BOOTSTRAP_NAME, "owner")
 
 def allowed(role: str, method: str, path: str) -> bool:
     """Whether a role may make this request: owner everything; experimenter studies and participants (not the
-    accounts); analyst only reads and exports."""
-    if role == "owner":
+    accounts); analyst only reads and exports. Every role may change its own password."""
+    if role == "owner" or (path == PASSWORD_PATH and role in ROLES):
         return True
     if role == "experimenter":
         return not path.startswith(ACCOUNTS_PATH)
@@ -136,9 +139,12 @@ def issue_token(ctx: Context, name: str, label: str, days: float) -> tuple[str, 
 
 
 def tokens(ctx: Context) -> list[dict[str, Any]]:
-    """Every token's record (never the token itself), newest first."""
+    """Every token's record (never the token itself), newest first; dashboard logins only while they work (else
+    every login would add a line for good; the audit log keeps who logged in)."""
+    ended_login = (ApiTokenRow.label == LOGIN_LABEL) & (ApiTokenRow.revoked_at.is_not(None)
+                                                        | (ApiTokenRow.expires_at <= _now()))
     with ctx.db.read() as s:
-        rows = s.execute(select(ApiTokenRow, ExperimenterRow.name).join(ExperimenterRow)
+        rows = s.execute(select(ApiTokenRow, ExperimenterRow.name).join(ExperimenterRow).where(~ended_login)
                          .order_by(ApiTokenRow.id.desc())).all()
         return [_token_json(row, name) for row, name in rows]
 
@@ -167,7 +173,7 @@ def actor_of_token(ctx: Context, token: str) -> Actor | None:
         expires = aware(row.expires_at)
         if row.revoked_at is not None or person.disabled_at is not None or expires is None or expires <= _now():
             return None
-        return Actor(person.name, person.role)
+        return Actor(person.name, person.role, row.id)
 
 
 def login(ctx: Context, name: str, password: str) -> tuple[str, dict[str, Any]] | None:
@@ -182,7 +188,64 @@ def login(ctx: Context, name: str, password: str) -> tuple[str, dict[str, Any]] 
         _hasher.verify(stored, password)
     except (VerificationError, InvalidHashError):
         return None
-    return issue_token(ctx, name, "dashboard login", LOGIN_HOURS / 24)
+    return issue_token(ctx, name, LOGIN_LABEL, LOGIN_HOURS / 24)
+
+
+def _check_new_password(password: str, field: str) -> None:
+    if len(password) < MIN_PASSWORD_LENGTH:
+        raise InvalidFields([{"field": field, "message": f"expected at least {MIN_PASSWORD_LENGTH} characters"}])
+
+
+def _end_logins(s: Any, person: ExperimenterRow, keep: int | None) -> int:
+    """Revoke the person's dashboard logins (not their labelled API tokens), all but `keep`; how many."""
+    now = _now()
+    rows = s.scalars(select(ApiTokenRow).where(ApiTokenRow.experimenter_id == person.id,
+                                               ApiTokenRow.label == LOGIN_LABEL,
+                                               ApiTokenRow.revoked_at.is_(None))).all()
+    ended = [r for r in rows if r.id != keep and (aware(r.expires_at) or now) > now]
+    for r in ended:
+        r.revoked_at = now
+    return len(ended)
+
+
+def change_password(ctx: Context, actor: Actor, current: str, new: str) -> dict[str, Any] | None:
+    """The logged-in person changes their own password (argon2 check of the current one); their other dashboard
+    logins end. None if the current password is wrong; Conflict for the server key, which has no account."""
+    if actor.token_id is None:
+        raise Conflict("you are logged in with the server's experimenter key, which has no account and no password "
+                       "(it is set in the server's environment); log in as a person to change a password")
+    _check_new_password(new, "new_password")
+    if new == current:
+        raise InvalidFields([{"field": "new_password", "message": "is the current password; expected a new one"}])
+    with ctx.db.read() as s:
+        stored = _person(s, actor.name).password_hash
+    if stored is None:
+        raise Conflict(f"the account {actor.name!r} has no password yet; an owner sets one on the Accounts page")
+    try:
+        _hasher.verify(stored, current)
+    except (VerificationError, InvalidHashError):
+        return None
+    hashed = _hasher.hash(new)
+    with ctx.db.write() as s:
+        person = _person(s, actor.name)
+        person.password_hash = hashed
+        ended = _end_logins(s, person, keep=actor.token_id)
+        s.commit()
+        return {**_person_json(person), "ended_logins": ended}
+
+
+def set_password(ctx: Context, name: str, password: str) -> dict[str, Any]:
+    """An owner sets a person's password (a forgotten one, or a first one); the person's dashboard logins end."""
+    _check_new_password(password, "password")
+    hashed = _hasher.hash(password)
+    with ctx.db.write() as s:
+        person = _person(s, name)
+        if person.disabled_at is not None:
+            raise Conflict(f"the account {name!r} is disabled")
+        person.password_hash = hashed
+        ended = _end_logins(s, person, keep=None)
+        s.commit()
+        return {**_person_json(person), "ended_logins": ended}
 
 
 def record_write(ctx: Context, actor: Actor, method: str, path: str, status: int, client: str) -> None:

@@ -29,7 +29,8 @@ def test_each_role_may_do_what_it_is_for(app_client) -> None:
     analyst = bearer(_person(app_client, "bo", "analyst"))
     owner = bearer(_person(app_client, "cy", "owner"))
 
-    assert app_client.get("/api/v1/whoami", headers=experimenter).json() == {"name": "ada", "role": "experimenter"}
+    assert app_client.get("/api/v1/whoami", headers=experimenter).json() == {"name": "ada", "role": "experimenter",
+                                                                            "server_key": False}
     # Experimenters run studies and participants, but cannot manage accounts.
     made = app_client.post("/api/v1/studies", json=study_spec(["active"]), headers=experimenter)
     assert made.status_code == 201
@@ -144,3 +145,86 @@ def test_every_experimenter_write_is_in_the_audit_log_with_who_what_when_where(a
 def test_the_account_endpoints_need_a_token(app_client, path: str) -> None:
     assert app_client.get(path).status_code == 401
     assert app_client.get(path, headers=bearer("tt_not-a-real-token")).status_code == 401
+
+
+def _login(client: Any, name: str, password: str) -> dict[str, str]:
+    logged = client.post("/api/v1/login", json={"name": name, "password": password})
+    assert logged.status_code == 200, logged.text
+    return bearer(logged.json()["token"])
+
+
+def test_a_person_changes_their_own_password_and_their_other_logins_end(app_client) -> None:
+    api_token = bearer(_person(app_client, "bo", "analyst", password="correct horse battery"))
+    here, elsewhere = (_login(app_client, "bo", "correct horse battery") for _ in range(2))
+    url = "/api/v1/password"
+    wrong = app_client.post(url, json={"current_password": "not my password", "new_password": "a new long secret"},
+                            headers=here)
+    assert wrong.status_code == 422 and wrong.json()["errors"] == [
+        {"field": "current_password", "message": "is not your current password"}]
+    short = app_client.post(url, json={"current_password": "correct horse battery", "new_password": "short"},
+                            headers=here)
+    assert short.status_code == 422 and short.json()["errors"][0]["field"] == "new_password"
+    # An analyst may only read, but may change her own password.
+    changed = app_client.post(url, json={"current_password": "correct horse battery",
+                                         "new_password": "a new long secret"}, headers=here)
+    assert changed.status_code == 200 and changed.json()["ended_logins"] == 1, changed.text
+    assert app_client.get("/api/v1/studies", headers=here).status_code == 200  # this login stays
+    assert app_client.get("/api/v1/studies", headers=api_token).status_code == 200  # and her API token
+    assert app_client.get("/api/v1/studies", headers=elsewhere).status_code == 401  # the other login ended
+    assert app_client.post("/api/v1/login", json={"name": "bo", "password": "correct horse battery"}).status_code \
+        == 401
+    _login(app_client, "bo", "a new long secret")
+    # The server key has no password to change.
+    refused = app_client.post(url, json={"current_password": "x", "new_password": "a new long secret"}, headers=EXP)
+    assert refused.status_code == 409 and "server's experimenter key" in refused.json()["detail"]
+    entries = [(e["actor"], e["path"], e["status"]) for e in app_client.get("/api/v1/audit", headers=EXP).json()
+               if e["path"] == url]
+    assert entries == [("owner (server key)", url, 409), ("bo", url, 200), ("bo", url, 422), ("bo", url, 422)]
+
+
+def test_the_token_list_shows_dashboard_logins_only_while_they_work(app_client) -> None:
+    _person(app_client, "di", "experimenter", password="correct horse battery")
+    first = _login(app_client, "di", "correct horse battery")
+    listed = [t for t in app_client.get("/api/v1/accounts/all-tokens", headers=EXP).json() if t["name"] == "di"]
+    assert sorted(t["label"] for t in listed) == ["dashboard login", "laptop"]
+    login_id = next(t["id"] for t in listed if t["label"] == "dashboard login")
+    laptop_id = next(t["id"] for t in listed if t["label"] == "laptop")
+    for token_id in (login_id, laptop_id):
+        assert app_client.delete(f"/api/v1/accounts/tokens/{token_id}", headers=EXP).status_code == 200
+    assert app_client.get("/api/v1/studies", headers=first).status_code == 401
+    second = _login(app_client, "di", "correct horse battery")
+    _login(app_client, "di", "correct horse battery")
+    listed = [t for t in app_client.get("/api/v1/accounts/all-tokens", headers=EXP).json() if t["name"] == "di"]
+    # the revoked login is not listed; the two live ones and the revoked labelled token are
+    assert sorted((t["label"], t["revoked_at"] is None) for t in listed) == [
+        ("dashboard login", True), ("dashboard login", True), ("laptop", False)]
+    assert login_id not in {t["id"] for t in listed}
+    assert app_client.get("/api/v1/studies", headers=second).status_code == 200
+
+
+def test_an_owner_sets_a_forgotten_password(app_client) -> None:
+    _person(app_client, "ada", "experimenter")  # no password: API token only
+    assert app_client.post("/api/v1/login", json={"name": "ada", "password": "anything at all"}).status_code == 401
+    set_ = app_client.post("/api/v1/accounts/ada/password", json={"password": "chosen by the owner"}, headers=EXP)
+    assert set_.status_code == 200 and set_.json()["has_password"] is True
+    ada = _login(app_client, "ada", "chosen by the owner")
+    again = app_client.post("/api/v1/accounts/ada/password", json={"password": "a second new one"}, headers=EXP)
+    assert again.json()["ended_logins"] == 1 and app_client.get("/api/v1/studies", headers=ada).status_code == 401
+    assert app_client.post("/api/v1/accounts/ada/password", json={"password": "short"},
+                           headers=EXP).json()["errors"][0]["field"] == "password"
+    assert app_client.post("/api/v1/accounts/nobody/password", json={"password": "long enough pass"},
+                           headers=EXP).status_code == 404
+    experimenter = bearer(_person(app_client, "cy", "experimenter"))
+    assert app_client.post("/api/v1/accounts/ada/password", json={"password": "long enough pass"},
+                           headers=experimenter).status_code == 403
+
+
+def test_erasures_and_assistance_name_the_acting_person(app_client) -> None:
+    study_id = make_study(app_client, pilot=True)
+    ada = bearer(_person(app_client, "ada", "experimenter"))
+    first, second = join(app_client, study_id)[1]["participant_id"], join(app_client, study_id)[1]["participant_id"]
+    assert app_client.delete(f"/api/v1/studies/{study_id}/participants/{first}", headers=ada).status_code == 204
+    assert app_client.post(f"/api/v1/studies/{study_id}/pilot/reset", headers=EXP).status_code == 200
+    log = app_client.get(f"/api/v1/studies/{study_id}/erasures", headers=ada).json()
+    assert [(e["participant_id"], e["erased_by"], e["reason"]) for e in log] == [
+        (first, "ada", "erasure"), (second, "owner (server key)", "pilot_reset")]
