@@ -5,12 +5,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Literal
 
-from pydantic import Field, SecretStr
+from pydantic import Field, SecretStr, field_validator
 from pydantic_settings import BaseSettings, SettingsConfigDict
 
 DEFAULT_DATABASE_URL = "sqlite:///var/tableteach.db"
 ROBOTS = ("trace", "mujoco")
 DEFAULT_DATA_DIR = "var/data"
+RECORDING_STORES = ("files", "database")
 
 
 class Settings(BaseSettings):
@@ -40,6 +41,9 @@ class Settings(BaseSettings):
         description="how often the runtime screens out participants idle past their study's time-out")
     data_dir: Path = Field(Path(DEFAULT_DATA_DIR),
         description="folder for files besides the database (robot recordings)")
+    recording_store: str = Field("files",
+        description="where robot recordings are kept: 'files' (the data folder) or 'database' (in the database, "
+                    "each host's data folder a cache: several hosts without a shared folder)")
     public_url: str | None = Field(None, description="base URL printed in links, e.g. https://study.example.org")
     forwarded_allow_ips: str = Field("127.0.0.1", min_length=1, max_length=1000,
         description="addresses of reverse proxies whose X-Forwarded-For/-Proto are believed (comma-separated, "
@@ -62,6 +66,16 @@ class Settings(BaseSettings):
     max_viewer_sockets: int = Field(200, ge=1, le=10_000,
         description="open 3D-view websockets in one process; beyond it the socket closes with 1013 (try again)")
     host: str = "127.0.0.1"
+
+    @field_validator("recording_store")
+    @classmethod
+    def _known_store(cls, value: str) -> str:
+        """'files' or 'database', else an error naming the setting and the choices."""
+        if value not in RECORDING_STORES:
+            raise ValueError(f"TABLETEACH_RECORDING_STORE is {value!r}: expected 'files' (the data folder) or "
+                             "'database' (recordings kept in the database, each host's data folder a cache)")
+        return value
+
     port: int = Field(8000, ge=0, le=65535)
 
 

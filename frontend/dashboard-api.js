@@ -25,13 +25,15 @@ export function clearToken() {
   sessionStorage.removeItem(TOKEN_KEY);
 }
 
-async function request(method, path, { body, raw = false, bearer = token() } = {}) {
+async function request(method, path, { body, csv, raw = false, bearer = token() } = {}) {
   const headers = { Accept: raw ? "text/csv" : "application/json" };
   if (bearer) headers.Authorization = `Bearer ${bearer}`;
   if (body !== undefined) headers["Content-Type"] = "application/json";
+  if (csv !== undefined) headers["Content-Type"] = "text/csv";
   let response;
   try {
-    response = await fetch(path, { method, headers, body: body === undefined ? undefined : JSON.stringify(body) });
+    const sent = csv !== undefined ? csv : body === undefined ? undefined : JSON.stringify(body);
+    response = await fetch(path, { method, headers, body: sent });
   } catch (error) {
     throw new ApiError(0, `the server could not be reached (${error.message}); check that it is running`);
   }
@@ -61,6 +63,19 @@ export async function checkToken(candidate) {
 /** Log in with a name and password: {token, name, role, expires_at} (the token lasts 12 hours). */
 export const login = (name, password) => request("POST", `${API}/login`, { body: { name, password }, bearer: null });
 export const whoami = () => request("GET", `${API}/whoami`);
+/** The logged-in person changes their own password; their other dashboard logins end. */
+export const changePassword = (current, next) =>
+  request("POST", `${API}/password`, { body: { current_password: current, new_password: next } });
+
+// Accounts (owner only): people, their API tokens, passwords.
+export const people = () => request("GET", `${API}/accounts`);
+export const addPerson = (name, role, password) =>
+  request("POST", `${API}/accounts`, { body: { name, role, password: password || null } });
+export const disablePerson = (name) => request("POST", `${API}/accounts/${enc(name)}/disable`);
+export const setPassword = (name, password) => request("POST", `${API}/accounts/${enc(name)}/password`, { body: { password } });
+export const allTokens = () => request("GET", `${API}/accounts/all-tokens`);
+export const issueToken = (name, label, days) => request("POST", `${API}/accounts/${enc(name)}/tokens`, { body: { label, days } });
+export const revokeToken = (id) => request("DELETE", `${API}/accounts/tokens/${enc(id)}`);
 export const audit = (limit = 500) => request("GET", `${API}/audit?limit=${enc(limit)}`);
 
 /** The whole audit log as {filename, blob}. */
@@ -98,8 +113,27 @@ export const history = (id, pid) => request("GET", `${API}/studies/${enc(id)}/pa
 export const curves = (id, finishedOnly = false, includePilot = false) =>
   request("GET", `${API}/studies/${enc(id)}/curves?finished_only=${finishedOnly}&include_pilot=${includePilot}`);
 
+/** One participant's data replayed through other learners (specs such as flip=0.1), beside the study's own. */
+export function whatIf(id, pid, learners) {
+  const query = learners.map((l) => `learner=${enc(l)}`).join("&");
+  return request("GET", `${API}/studies/${enc(id)}/participants/${enc(pid)}/what-if${query ? `?${query}` : ""}`);
+}
+
 export function replay(id, pid, { task_index, kind, index }) {
   return request("GET", `${API}/studies/${enc(id)}/participants/${enc(pid)}/replays/${enc(task_index)}/${enc(kind)}/${enc(index)}`);
+}
+
+// Reconciliation with Prolific: its submissions export, the per-id table, the bonus rule and file.
+export const uploadSubmissions = (id, text) => request("PUT", `${API}/studies/${enc(id)}/prolific/submissions`, { csv: text });
+export const reconciliation = (id) => request("GET", `${API}/studies/${enc(id)}/prolific/reconciliation`);
+export const bonusRule = (id) => request("GET", `${API}/studies/${enc(id)}/prolific/bonus-rule`);
+export const setBonusRule = (id, amounts) => request("PUT", `${API}/studies/${enc(id)}/prolific/bonus-rule`, { body: { amounts } });
+
+/** The bulk-bonus file as {filename, text, blob}: lines "participant id,amount". */
+export async function bonusFile(id) {
+  const response = await request("GET", `${API}/studies/${enc(id)}/prolific/bonuses.csv`, { raw: true });
+  const blob = await response.blob();
+  return { filename: `${id}-bonuses.csv`, text: await blob.text(), blob };
 }
 
 export const EXPORTS = ["exports.zip", "participants.csv", "events.csv", "steps.csv", "beliefs.csv", "questionnaire.csv",

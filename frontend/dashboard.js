@@ -1,16 +1,21 @@
 // The experimenter dashboard: log in, studies, a study's live participants and curves, one participant's history.
-// Views are rebuilt from the API on every hash change (#/, #/new, #/study/{id}, #/study/{id}/p/{pid}).
+// Views are rebuilt from the API on every hash change (#/, #/new, #/audit, #/accounts, #/account, #/study/{id},
+// #/study/{id}/edit, #/study/{id}/prolific, #/study/{id}/p/{pid}).
 // All text from the server goes through textContent, never innerHTML.
 
 import * as api from "./dashboard-api.js";
 import { PALETTE, lineChart, quatYaw, tableView } from "./charts.js";
 import { h, pretty } from "./dom.js";
 import { OUTCOME_CODES, studyFormView } from "./dashboard-study-form.js";
+import { errorBox, pill, saveBlob, setCrumbs, toast, when } from "./dashboard-ui.js";
+import { prolificView } from "./dashboard-prolific.js";
+import { accountsView, accountView } from "./dashboard-accounts.js";
+import { consistencyNote, consistencyPill, whatIfSection } from "./dashboard-what-if.js";
 
 const POLL_MS = 4000;
 const app = document.getElementById("app");
-const crumbs = document.getElementById("crumbs");
 const logoutButton = document.getElementById("logout");
+const meLink = document.getElementById("me");
 let cleanups = [];
 
 // ---------------------------------------------------------------- small DOM helpers
@@ -33,13 +38,6 @@ function ago(iso) {
   return `${Math.round(seconds / 86400)} d ago`;
 }
 
-/** Local time as YYYY-MM-DD HH:MM (compact and unambiguous). */
-function when(iso) {
-  if (!iso) return "–";
-  const d = new Date(iso);
-  const two = (n) => String(n).padStart(2, "0");
-  return `${d.getFullYear()}-${two(d.getMonth() + 1)}-${two(d.getDate())} ${two(d.getHours())}:${two(d.getMinutes())}`;
-}
 
 // The page's attention telemetry (tab hidden, window left, pastes): flagged from this many signals in all.
 const LOOKED_AWAY_FLAG = 3;
@@ -50,28 +48,6 @@ function signalsText(p) {
 function lookedAway(p) {
   const n = p.attention_signals ?? {};
   return (n.tab_hidden ?? 0) + (n.window_blur ?? 0) + (n.paste ?? 0) >= LOOKED_AWAY_FLAG;
-}
-
-function pill(text, kind = text) {
-  return h("span", { class: `pill pill-${kind}` }, text);
-}
-
-function toast(message, kind = "info") {
-  const el = document.getElementById("toast");
-  el.textContent = message;
-  el.className = `toast-${kind}`;
-  el.hidden = false;
-  clearTimeout(toast.timer);
-  toast.timer = setTimeout(() => { el.hidden = true; }, 3500);
-}
-
-function errorBox(error) {
-  return h("div", { class: "error", role: "alert" }, error instanceof api.ApiError ? error.detail : String(error));
-}
-
-function setCrumbs(...items) {
-  crumbs.replaceChildren(...items.flatMap((item, i) => [...(i ? [h("span", { class: "sep" }, "/")] : []),
-    item.href ? h("a", { href: item.href }, item.text) : h("span", {}, item.text)]));
 }
 
 function every(ms, fn) {
@@ -98,24 +74,44 @@ async function copyText(text, input) {
 
 // ---------------------------------------------------------------- routing
 
+// Who is behind the token ({name, role}), asked once per token: the topbar names them, owners see Accounts.
+let person = null;
+let personToken = null;
+async function whoami() {
+  const token = api.token();
+  if (personToken !== token) {
+    person = await api.whoami();
+    personToken = token;
+  }
+  meLink.textContent = `${person.name} (${person.role})`;
+  meLink.hidden = false;
+  return person;
+}
+
 async function route() {
   for (const stop of cleanups) stop();
   cleanups = [];
   const token = api.token();
   logoutButton.hidden = !token;
+  meLink.hidden = true;
   if (!token) return loginView();
   const parts = location.hash.replace(/^#\/?/, "").split("/").filter(Boolean).map(decodeURIComponent);
   try {
+    const me = await whoami();
     if (parts[0] === "new") return await newStudyView();
     if (parts[0] === "audit") return await auditView();
+    if (parts[0] === "accounts") return await accountsView(me);
+    if (parts[0] === "account") return accountView(me);
     if (parts[0] === "study" && parts[2] === "p") return await participantView(parts[1], Number(parts[3]));
     if (parts[0] === "study" && parts[2] === "edit") return await editStudyView(parts[1]);
+    if (parts[0] === "study" && parts[2] === "prolific") return await prolificView(parts[1]);
     if (parts[0] === "study") return await studyView(parts[1]);
-    return await studiesView();
+    return await studiesView(me);
   } catch (error) {
     if (error instanceof api.ApiError && error.status === 401) {
       api.clearToken();
-      return loginView("The server no longer accepts this token (it may have restarted with another one). Log in again.");
+      return loginView("The server no longer accepts this token (it may have restarted with another one, or the "
+        + "login expired or was ended). Log in again.");
     }
     app.replaceChildren(errorBox(error), h("p", {}, h("a", { href: "#/" }, "Back to the studies")));
   }
@@ -123,6 +119,7 @@ async function route() {
 
 logoutButton.addEventListener("click", () => {
   api.clearToken();
+  person = personToken = null;
   location.hash = "#/";
   route();
 });
@@ -191,12 +188,7 @@ async function auditView() {
   const saveCsv = async () => {
     try {
       const { filename, blob } = await api.auditCsv();
-      const url = URL.createObjectURL(blob);
-      const a = h("a", { href: url, download: filename, hidden: true });
-      document.body.append(a);
-      a.click();
-      a.remove();
-      setTimeout(() => URL.revokeObjectURL(url), 10_000);
+      saveBlob(filename, blob);
     } catch (error) {
       toast(`Download failed: ${error.detail ?? error}`, "error");
     }
@@ -220,7 +212,7 @@ async function auditView() {
 
 // ---------------------------------------------------------------- studies
 
-async function studiesView() {
+async function studiesView(me) {
   setCrumbs({ text: "Studies" });
   const showArchived = location.hash.includes("archived");
   const studies = await api.listStudies(showArchived);
@@ -236,6 +228,7 @@ async function studiesView() {
       h("div", { class: "row" }, h("a", { href: showArchived ? "#/" : "#/?archived", id: "toggle-archived" },
         showArchived ? "Hide archived studies" : "Show archived studies"),
       h("a", { class: "button", href: "#/audit", id: "audit-link" }, "Audit log"),
+      me.role === "owner" ? h("a", { class: "button", href: "#/accounts", id: "accounts-link" }, "Accounts") : null,
       h("a", { class: "button primary", href: "#/new", id: "new-study" }, "New study"))),
     studies.length
       ? h("div", { class: "table-scroll" }, h("table", { class: "data", id: "studies" },
@@ -308,6 +301,8 @@ async function studyView(studyId) {
           h("a", { class: "button", id: "edit-study", href: `#/study/${encodeURIComponent(study.id)}/edit` }, "Edit"),
           h("button", { id: "clone-study", onclick: cloneStudy }, "Clone"),
           h("button", { id: "reset-pilot", onclick: resetPilot }, "Reset pilot…"),
+          h("a", { class: "button", id: "open-prolific", href: `#/study/${encodeURIComponent(study.id)}/prolific` },
+            "Prolific: reconcile and bonuses"),
           study.archived_at
             ? h("button", { id: "unarchive-study", onclick: () => archive(false) }, "Unarchive")
             : h("button", { id: "archive-study", onclick: () => archive(true) }, "Archive…"),
@@ -537,7 +532,7 @@ function renderLive(box, data, study, refresh) {
     h("td", {}, p.condition),
     h("td", {}, progressText(p, study)),
     h("td", {}, pill(p.status.replace("_", " "), p.status), p.dropout ? pill("dropout") : null,
-      p.attention_failed ? pill("attention failed", "flag") : null,
+      p.attention_failed ? pill("attention failed", "flag") : null, consistencyPill(p),
       lookedAway(p) ? h("span", { class: "pill flag", title: signalsText(p) }, "looked away") : null,
       p.end_reason && p.end_reason !== "withdrew" ? h("span", { class: "small muted" }, ` ${END_REASONS[p.end_reason] ?? p.end_reason}`) : null),
     h("td", { class: "num", title: `joined ${when(p.created_at)}` }, duration(p.elapsed_seconds)),
@@ -591,12 +586,7 @@ function renderCurves(box, data, study) {
 async function download(studyId, name, includePilot = false) {
   try {
     const { filename, blob } = await api.exportCsv(studyId, name, includePilot);
-    const url = URL.createObjectURL(blob);
-    const a = h("a", { href: url, download: filename, hidden: true });
-    document.body.append(a);
-    a.click();
-    a.remove();
-    setTimeout(() => URL.revokeObjectURL(url), 10_000);
+    saveBlob(filename, blob);
   } catch (error) {
     toast(`Download failed: ${error.detail ?? error}`, "error");
   }
@@ -631,7 +621,7 @@ async function participantView(studyId, participantId) {
         }) }, "Erase this participant's data"))),
     h("dl", { class: "card facts" }, facts.flatMap(([k, v]) => [h("dt", {}, k), h("dd", {}, v === null || v === undefined ? "–" : String(v))])),
     ...data.tasks.map((task) => taskSection(task, studyId, participantId)),
-    data.tasks.length ? null : h("p", { class: "card muted" }, "This participant has not started a task yet."),
+    data.tasks.length ? whatIfSection(studyId, participantId) : h("p", { class: "card muted" }, "This participant has not started a task yet."),
     data.questionnaire.length ? h("section", { class: "card" }, h("h2", {}, "Questionnaire"),
       h("table", { class: "data", id: "answers" }, h("tbody", {}, data.questionnaire.map((a) =>
         h("tr", {}, h("td", {}, a.text ?? a.item_id), h("td", { class: "answer" }, a.answer === null || a.answer === undefined ? "(no answer)" : String(a.answer))))))) : null,
@@ -721,6 +711,7 @@ function taskSection(task, studyId, participantId) {
       ? h("p", { class: "truth small" }, h("b", {}, "Ground truth "), h("code", { class: "formula" }, task.ground_truth),
         h("span", { class: "muted" }, ` — ${task.ground_truth_description}`))
       : h("p", { class: "muted small" }, "Ground truth unknown: no similarity."),
+    consistencyNote(task),
     h("div", { class: "task-grid" },
       h("div", {}, h("div", { class: "chart-row" }, charts),
         h("table", { class: "data executions" },

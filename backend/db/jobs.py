@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import delete, func, or_, select, update
+from sqlalchemy import and_, case, delete, func, or_, select, update
 from sqlalchemy.orm import Session
 
 from .tables import JobRow, utcnow
@@ -72,9 +72,14 @@ def release_claims(session: Session) -> int:
     return int(result.rowcount or 0)  # type: ignore[attr-defined]
 
 
-def next_due(session: Session) -> datetime | None:
-    """When the earliest job is due (claimed or not), or None without jobs."""
-    return session.execute(select(func.min(JobRow.due_at))).scalar_one_or_none()
+_CLAIMABLE_AT = case((and_(JobRow.claimed_until.is_not(None), JobRow.claimed_until > JobRow.due_at),
+                      JobRow.claimed_until), else_=JobRow.due_at)
+
+
+def next_claimable(session: Session) -> datetime | None:
+    """When the earliest job can next be claimed (due, and its holder's lease, if any, run out); None without jobs.
+    A read: a runner asks this before it takes the write lock to claim."""
+    return session.execute(select(func.min(_CLAIMABLE_AT))).scalar_one_or_none()
 
 
 def pending_jobs(session: Session, *, participant_id: int | None = None) -> list[JobRow]:

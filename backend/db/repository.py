@@ -13,6 +13,7 @@ from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
 
 from .engine import busy, is_busy
+from .recording_rows import delete_participant_files
 from .tables import ErasureRow, EventRow, ParticipantRow, StudyRow, TaskSessionRow, utcnow
 
 # Participants who left or were erased: they no longer count for balancing and an erased one is shown nowhere.
@@ -141,6 +142,40 @@ def get_participant_with_study(session: Session, *, participant_id: int) -> tupl
     return None if study is None else (participant, study)
 
 
+@dataclass(frozen=True)
+class PollRow:
+    """What a participant's poll needs to tell whether anything changed: one row, no ORM objects."""
+
+    participant_id: int
+    participant_version: int
+    stage: str
+    task_index: int
+    study_updated_at: datetime | None
+    task_version: int | None  # the current task's session (None outside a task or before it exists)
+    execution: dict[str, Any] | None
+
+
+_POLL_BY_TOKEN = (
+    select(ParticipantRow.id, ParticipantRow.version, ParticipantRow.stage, ParticipantRow.task_index,
+           StudyRow.updated_at, TaskSessionRow.version, TaskSessionRow.execution)
+    .join(StudyRow, StudyRow.id == ParticipantRow.study_id)
+    .outerjoin(TaskSessionRow, and_(TaskSessionRow.participant_id == ParticipantRow.id,
+                                    TaskSessionRow.task_index == ParticipantRow.task_index))
+    .where(ParticipantRow.token == bindparam("token"))
+)
+
+
+def poll_row(session: Session, *, token: str) -> PollRow | None:
+    """The versions of a participant's rows (participant, study, current task session), by token; one query."""
+    row = session.execute(_POLL_BY_TOKEN, {"token": token}).one_or_none()
+    if row is None:
+        return None
+    pid, version, stage, task_index, study_updated_at, task_version, execution = row
+    in_task = stage == "task"
+    return PollRow(pid, version, stage, task_index, study_updated_at, task_version if in_task else None,
+                   execution if in_task else None)
+
+
 def get_participant_and_study(session: Session, *, token: str) -> tuple[ParticipantRow, StudyRow] | None:
     """The participant whose secret token this is, with their study (one query)."""
     found = get_participant_for_request(session, token=token, client_event_id=None)
@@ -223,10 +258,21 @@ def stale_participants(session: Session, *, study_id: str, idle_since: datetime)
 
 
 def delete_participant_data(session: Session, *, participant_id: int) -> None:
-    """Delete a participant's events and teaching sessions (their answers and beliefs live there)."""
+    """Delete a participant's events, teaching sessions (their answers and beliefs live there) and the rows of their
+    recordings kept in the database."""
     session.info.pop("task_sessions", None)
     session.execute(delete(EventRow).where(EventRow.participant_id == participant_id))
     session.execute(delete(TaskSessionRow).where(TaskSessionRow.participant_id == participant_id))
+    uid = session.scalar(select(ParticipantRow.uid).where(ParticipantRow.id == participant_id))
+    if uid is not None:  # recordings kept in the database (their bytes are swept after the commit)
+        delete_participant_files(session, uid)
+
+
+def uids_without_data(session: Session, *, uids: list[str]) -> list[str]:
+    """Which of these participant uids belong to participants whose data are deleted (withdrawn or erased)."""
+    stmt = select(ParticipantRow.uid).where(ParticipantRow.uid.in_(uids),
+                                            ParticipantRow.stage.in_(("withdrawn", "erased")))
+    return sorted(session.scalars(stmt))
 
 
 def add_erasure(session: Session, *, values: dict[str, Any]) -> ErasureRow:

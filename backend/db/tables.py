@@ -6,8 +6,8 @@ import secrets
 from datetime import datetime, timezone
 from typing import Any
 
-from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Integer, MetaData, String, Text, UniqueConstraint,
-                        false, text, true)
+from sqlalchemy import (JSON, Boolean, DateTime, Float, ForeignKey, Integer, LargeBinary, MetaData, String, Text,
+                        UniqueConstraint, false, text, true)
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column
 
 # Deterministic constraint names so that migrations (batch mode on SQLite) can refer to them.
@@ -85,6 +85,8 @@ class StudyRow(Base):
     consent_form: Mapped[dict[str, Any]] = mapped_column(JSON, default=dict, server_default="{}")
     allow_anonymous: Mapped[bool] = mapped_column(Boolean, default=False, server_default=false())
     quiz_feedback: Mapped[bool] = mapped_column(Boolean, default=True, server_default=true())
+    # The learner's assumed verdict-flip probability in [0, 0.5) (core.belief): 0 is the authors' learner.
+    flip_rate: Mapped[float] = mapped_column(Float, default=0.0, server_default=text("0.0"))
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)
 
@@ -144,6 +146,10 @@ class TaskSessionRow(Base):
     demo_placed: Mapped[list[str]] = mapped_column(JSON, default=list)
     demo_trace: Mapped[list[list[str]]] = mapped_column(JSON, default=list)
     execution: Mapped[dict[str, Any] | None] = mapped_column(JSON, nullable=True)
+    # Bumped by every update (optimistic locking, as on participants): a poll compares it to tell "nothing new".
+    version: Mapped[int] = mapped_column(Integer, nullable=False, server_default="1")
+
+    __mapper_args__ = {"version_id_col": version}
 
 
 class EventRow(Base):
@@ -242,3 +248,25 @@ class AuditRow(Base):
     path: Mapped[str] = mapped_column(String(500))
     status: Mapped[int] = mapped_column(Integer)
     client: Mapped[str] = mapped_column(String(64))
+
+
+class RecordingBlobRow(Base):
+    """The bytes of one recording file, named by their SHA-256: a file several participants share is kept once."""
+
+    __tablename__ = "recording_blobs"
+
+    digest: Mapped[str] = mapped_column(String(64), primary_key=True)
+    size: Mapped[int] = mapped_column(Integer)
+    data: Mapped[bytes] = mapped_column(LargeBinary)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
+
+
+class RecordingFileRow(Base):
+    """One participant's recording file (participant-<uid>/task-<i>/<kind>-<j>.<suffix>) and the bytes it holds."""
+
+    __tablename__ = "recording_files"
+
+    name: Mapped[str] = mapped_column(String(200), primary_key=True)
+    participant_uid: Mapped[str] = mapped_column(String(32), index=True)
+    digest: Mapped[str] = mapped_column(ForeignKey("recording_blobs.digest"), index=True)
+    created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)

@@ -27,6 +27,7 @@ from .monitoring import belief_summary, list_participants
 from .participants import (answer_questionnaire, answer_quiz, finish_instructions, give_consent, join_study,
                            participant_id_of)
 from .state import STAGES, Expect, delete_recordings, participant_state
+from .freshness import activity_and_next_change, activity_tag, current_state_tag, robot_activity, tagged_state
 from .statistics import study_statistics
 from .studies import (
     archive_study,
@@ -54,6 +55,7 @@ from .studies import (
     study_view,
     update_study,
 )
+from .flat_view import flat_view
 from .teaching import assess_execution, finish_demonstration, place_object, start_execution
 from .viewing import (
     claim_tab,
@@ -64,7 +66,6 @@ from .viewing import (
     participant_uid_of,
     release_tab,
     replay_execution,
-    robot_activity,
 )
 
 __all__ = [
@@ -115,6 +116,7 @@ __all__ = [
     "belief_summary",
     "claim_tab",
     "current_motion",
+    "flat_view",
     "close_study",
     "create_study",
     "delete_recordings",
@@ -136,7 +138,11 @@ __all__ = [
     "place_object",
     "release_tab",
     "replay_execution",
+    "activity_and_next_change",
+    "activity_tag",
+    "current_state_tag",
     "robot_activity",
+    "tagged_state",
     "seed_demo_study",
     "start_execution",
     "study_view",

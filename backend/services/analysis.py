@@ -1,7 +1,7 @@
 """The experimenter's analysis views: live participant table, one participant's history, learning curves, replays.
 
-Read-only: every function opens a read transaction, rebuilds beliefs with the learning core
-(core.session.belief_after) and never writes. The learning curves follow the paper's user-study
+Read-only: every function opens a read transaction, rebuilds beliefs with the learning core (the study's
+own learner, core.session.noisy_belief_after) and never writes. The learning curves follow the paper's user-study
 figure: the median expected similarity to the ground truth E_P[L(phi, phi*)] and the mean entropy of
 the belief after each learning step (step 0 is the prior, step k the belief after the k-th
 demonstration or assessed query).
@@ -19,6 +19,7 @@ from ..db import repository as repo
 from ..db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
 from ..errors import NotFound
 from ..recording_store import RecordingId
+from .consistency import FLAG_BELOW, participant_consistency, session_consistency
 from .context import Context, iso
 from .monitoring import (
     belief_view,
@@ -49,6 +50,9 @@ def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | N
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         current = repo.current_task_sessions(s, study_id=study_id)
+        stored: dict[int, list[tuple[int, str]]] = {}
+        for session in repo.iter_study_task_sessions(s, study_id=study_id):
+            stored.setdefault(session.participant_id, []).append((session.task_index, session.state_json))
         rows = []
         for p in repo.list_participants(s, study_id=study_id):
             inactive = inactive_minutes(p, now)
@@ -57,6 +61,7 @@ def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | N
             rows.append({
                 **participant_row(p, ctx.settings, now), "n_tasks": len(study.tasks), "step": step,
                 "dropout": p.stage not in FINISHED and inactive > threshold, "inactive_minutes": inactive,
+                "consistency": participant_consistency(stored.get(p.id, [])),
             })
     return {"study_id": study_id, "now": now.isoformat(), "dropout_minutes": threshold, "participants": rows}
 
@@ -67,13 +72,13 @@ def live_participants(ctx: Context, study_id: str, *, dropout_minutes: float | N
 def _step_summaries(state_json: str, truth_formula: str | None, top: int) -> list[dict[str, Any]]:
     """The belief after each learning step of a stored session: entropy, similarity, MAP and top formulas."""
     state = session_of(state_json)
-    task, prior = state.config.task, state.config.prior
-    data = core.learning_data(state)
+    task, prior, flip_rate = state.config.task, state.config.prior, state.config.flip_rate
+    data = core.learning_verdicts(state)
     records: list[core.Record | None] = [None, *state.learning_records]
     return [
         {"step": step, "record": None if record is None else {
             "kind": record.kind, "acceptable": record.acceptable, "trace": [sorted(x) for x in record.trace]},
-         **belief_view(task, prior, data[:step], truth_formula, top)}
+         **belief_view(task, prior, data[:step], truth_formula, top, flip_rate)}
         for step, record in enumerate(records)
     ]
 
@@ -150,6 +155,7 @@ def participant_history(ctx: Context, study_id: str, participant_id: int) -> dic
                 "ground_truth_description": None if truth is None else space.describe(space.mask_of_formula(truth)),
                 "step": _step_of(state), "steps": _task_steps(ts, study),
                 "executions": [x for x in executions if x["task_index"] == ts.task_index],
+                "consistency": _consistency_view(ts.state_json),
             })
         items = {item["id"]: item for item in study.questionnaire}
         answers = [
@@ -165,6 +171,13 @@ def participant_history(ctx: Context, study_id: str, participant_id: int) -> dic
             "events": [_event_view(e) for e in events],
             "questionnaire": answers,
         }
+
+
+def _consistency_view(state_json: str) -> dict[str, Any]:
+    """A task's teacher consistency as the history shows it (services.consistency)."""
+    view = session_consistency(state_json)
+    return {**{k: view[k] for k in ("p_verdicts", "p_tests", "n_verdicts", "score", "lowest", "flagged")},
+            "flag_below": FLAG_BELOW}
 
 
 # ====================================================================== learning curves

@@ -59,9 +59,10 @@ def _answer(ctx: Context, study_id: str, participant_id: int) -> dict[str, Any]:
         return participant_row(participant, ctx.settings, utcnow())
 
 
-def restore_participant(ctx: Context, study_id: str, participant_id: int) -> dict[str, Any]:
+def restore_participant(ctx: Context, study_id: str, participant_id: int, *, by: str) -> dict[str, Any]:
     """Bring back a participant who timed out, failed the quiz (with fresh attempts) or declined consent: they
-    continue where they were, with no code yet, and the time-out counts from now."""
+    continue where they were, with no code yet, and the time-out counts from now. The event names `by`, the acting
+    person."""
     token = _participant_token(ctx, study_id, participant_id)
 
     def run(a: Action) -> None:
@@ -75,15 +76,15 @@ def restore_participant(ctx: Context, study_id: str, participant_id: int) -> dic
         p.stage, p.end_reason, p.finished_at, p.completion_code = stage, None, None, None
         if reason == "comprehension":
             p.quiz_failures = 0
-        a.log("restored", {"by": "experimenter", "reason": reason, "stage": stage})
+        a.log("restored", {"by": by, "reason": reason, "stage": stage})
 
     act(ctx, token, "restore", {"participant_id": participant_id}, None, run)
     return _answer(ctx, study_id, participant_id)
 
 
-def help_on(ctx: Context, study_id: str, participant_id: int) -> dict[str, Any]:
+def help_on(ctx: Context, study_id: str, participant_id: int, *, by: str) -> dict[str, Any]:
     """Move a stuck participant past the stage they are at (instructions, quiz, the current task or the
-    questionnaire); consent stays theirs to give."""
+    questionnaire); consent stays theirs to give. The event names `by`, the acting person."""
     token = _participant_token(ctx, study_id, participant_id)
     expire_timeouts(ctx, study_id)  # one idle past the limit is screened out first: restore, then help
 
@@ -95,7 +96,7 @@ def help_on(ctx: Context, study_id: str, participant_id: int) -> dict[str, Any]:
                            f"past{hint}; expected one at the instructions, the quiz, a task or the questionnaire"
                            + (" (consent is theirs to give)" if p.stage == "consent" else ""))
         stage = p.stage
-        a.log("helped_on", {"by": "experimenter", "stage": stage, "task_index": p.task_index, "what": HELP[stage]})
+        a.log("helped_on", {"by": by, "stage": stage, "task_index": p.task_index, "what": HELP[stage]})
         sequence = task_sequence(a.study, p)
         if stage == "instructions" and a.study.quiz:
             p.stage = "quiz"

@@ -9,7 +9,7 @@ nothing the first run stored: labels and plans are stored only where they are mi
 - settle: the robot places a demonstration's stored objects (rebuilding its table from the stored
   placements if it lost it) and the labels it reports are stored (event `placed`).
 - work_out: the robot works a query or test execution out (physics, recording) and its plan is stored;
-  its clock starts then.
+  its clock starts then. With recordings kept in the database, the execution's files are stored with the plan.
 - finish_execution: at the stored end of an execution, it is recorded as finished (event
   `execution_finished`).
 - plan_ahead: the robot's next turn is planned (and, for a robot that records, worked out) before the
@@ -22,9 +22,10 @@ import logging
 from typing import Any, TypeGuard
 
 from ..db import jobs as job_rows
+from ..db import recording_rows
 from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
-from ..recording_store import RecordingId
+from ..recording_store import VISER_SUFFIX, RecordingId
 from . import executions, placements
 from .context import Context
 from .planning import ROBOT_TURNS, position_of
@@ -94,6 +95,9 @@ def work_out(ctx: Context, job: job_rows.ClaimedJob) -> None:
         speed = executions.speed_of(ex)
     key = robot_key_of(job)
     planned = executions.plan(ctx, key, rid, list(want[2]), speed)
+    files = ctx.store.finished(rid)  # its files, for a store every host reaches (none for local files)
+    if files and not any(f.name.endswith(VISER_SUFFIX) for f in files):
+        raise RuntimeError(f"the robot left no .viser file of {rid.name}: expected it with the .npz and .json")
     with ctx.db.write() as s:
         repo.lock_participant_id(s, participant_id=job.participant_id)
         found = _session(s, job.participant_id, job.task_index)
@@ -104,6 +108,7 @@ def work_out(ctx: Context, job: job_rows.ClaimedJob) -> None:
         if not _awaits_plan(ex, want):
             return
         ts.execution = stored = {**ex, "plan": planned, "started_at": utcnow().isoformat()}
+        recording_rows.add_files(s, files)  # with the plan: any host that reads the plan can serve the motion
         a = Action(ctx, s, participant, study, None, None)
         a.enqueue(FINISH_EXECUTION, ts.task_index, {"kind": ex["kind"], "index": ex["index"]},
                   due_in=executions.duration(stored))

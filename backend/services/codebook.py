@@ -7,6 +7,7 @@ import json
 from collections.abc import Iterable, Iterator
 from typing import Any
 
+from .consistency import FLAG_BELOW
 from .context import Context
 from .exports import EXPORT_COLUMNS, EXPORTS, export_rows
 from .outcomes import OUTCOME_WORDS
@@ -116,7 +117,9 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
         "step": ("integer", "learning step: 0 is the prior, k the belief after the k-th demonstration or assessed "
                  "query", ""),
         "record_kind": ("category", "the step's observation", "empty (prior), practice, demonstration, query"),
-        "entropy": ("number", "entropy of the belief over canonical clause sets", "nats"),
+        "entropy": ("number", "entropy of the belief over canonical clause sets (every belief here is the study's "
+                    "learner's: the authors', or the noise-aware one when study.json's flip_rate is above 0)",
+                    "nats"),
         "map_formula": ("text", "the most probable task formula", "LTL over the template clauses"),
         "map_description": ("text", "the most probable formula in plain English", ""),
         "similarity": ("number", "expected similarity of the belief to the ground truth E_P[L(phi, phi*)] "
@@ -132,6 +135,10 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
                               "their verdicts, queries and tests (tests against the final belief), each just before "
                               "it was given; the same on every row of the task (empty without verdicts)",
                               "probability 0-1"),
+        "consistency_flag": ("boolean", "one of the participant's verdicts in this task (queries and tests) had a "
+                             f"probability below {FLAG_BELOW} just before it was given: a reason to look at the "
+                             "session (docs/experiments.md, 'Teacher consistency'); the same on every row of the task",
+                             BOOL),
         "step_kind": ("category", "the step (steps.csv step_kind) whose answer this belief follows (empty for the "
                       "prior)", "demonstration, query"),
         "step_index": ("integer", "with step_kind: steps.csv's step_index of that step (join beliefs to steps on "

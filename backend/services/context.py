@@ -6,6 +6,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
+from collections.abc import Callable
 from typing import Any
 
 from ..config import Settings
@@ -99,13 +100,14 @@ class Context:
 
     @staticmethod
     def from_settings(settings: Settings, robot: Robot | None = None,
-                      recordings: RecordingStore | None = None) -> "Context":
+                      recordings: RecordingStore | Callable[[Database], RecordingStore] | None = None) -> "Context":
         """Open the database and its notifier; the robot and recording store are the ones given (the app composes
-        them), or else the trace robot and plain files."""
+        them; a store that needs the database is given as a function of it), or else the trace robot and files."""
         if robot is None:
             robot = TraceRobot("dinner", settings.robot_seconds_per_object)
-        return Context(Database(settings.database_url, busy_seconds=settings.database_busy_seconds), robot, settings,
-                       notifier=make_notifier(settings.database_url), recordings=recordings)
+        db = Database(settings.database_url, busy_seconds=settings.database_busy_seconds)
+        store = recordings(db) if callable(recordings) else recordings
+        return Context(db, robot, settings, notifier=make_notifier(settings.database_url), recordings=store)
 
 
 def aware(value: datetime | None) -> datetime | None:

@@ -8,10 +8,10 @@ from collections.abc import Iterator
 from typing import Any
 
 from ..core import session as core
-from ..core.consistency import consistency_score, session_verdict_probabilities
 from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow
 from ..errors import NotFound
+from .consistency import session_consistency
 from .context import Context, aware, iso
 from .attention import SIGNALS
 from .instruments import scores
@@ -52,7 +52,7 @@ BELIEF_COLUMNS = [
     "participant_id", "condition", "task_index", "task", "step", "record_kind", "acceptable", "trace", "entropy",
     "map_formula", "map_description", "similarity", "map_similarity",
 ] + [f"top{i}_{part}" for i in range(1, 6) for part in ("formula", "p")] + [
-    "p_verdict", "consistency_score",  # teacher consistency (core.consistency)
+    "p_verdict", "consistency_score", "consistency_flag",  # teacher consistency (services.consistency)
     "step_kind", "step_index",  # the step (steps.csv) whose answer this belief follows; empty for the prior
 ]
 
@@ -190,17 +190,18 @@ def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[
     for ts in repo.iter_study_task_sessions(s, study_id=study.id, include_pilot=include_pilot):
         state = session_of(ts.state_json)
         task = study.tasks[ts.task_index]
-        data = core.learning_data(state)
+        data = core.learning_verdicts(state)
         records: list[core.Record | None] = [None, *state.learning_records]
-        learning, tests = session_verdict_probabilities(state)  # teacher consistency (core.consistency)
-        p_verdicts, score = [None, *learning], consistency_score([*learning, *tests])
+        consistency = session_consistency(ts.state_json)  # teacher consistency (services.consistency)
+        p_verdicts, score, flagged = consistency["p_verdicts"], consistency["score"], consistency["flagged"]
         seen: dict[str, int] = {}
         for step, record in enumerate(records):
             kind_index = None
             if record is not None:
                 kind_index = seen.get(record.kind, 0)
                 seen[record.kind] = kind_index + 1
-            view = belief_view(state.config.task, state.config.prior, data[:step], task.get("ground_truth"), 5)
+            view = belief_view(state.config.task, state.config.prior, data[:step], task.get("ground_truth"), 5,
+                               state.config.flip_rate)
             cells: list[Any] = []
             for i in range(5):
                 cells += ([view["top"][i]["formula"], view["top"][i]["p"]] if i < len(view["top"])
@@ -209,5 +210,5 @@ def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[
                    None if record is None else record.kind, None if record is None else record.acceptable,
                    None if record is None else _json([sorted(x) for x in record.trace]),
                    view["entropy"], view["map_formula"], view["map_description"], view["similarity"],
-                   view["map_similarity"], *cells, p_verdicts[step], score,
+                   view["map_similarity"], *cells, p_verdicts[step], score, flagged,
                    None if record is None else record.kind, kind_index]

@@ -7,6 +7,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from .plain_words import shown
+
 # Answer scales beyond the study's own item kinds: (lowest, highest, step); the page labels only the two ends.
 INSTRUMENT_KINDS: dict[str, tuple[int, int, int]] = {
     "anchored5": (1, 5, 1),  # five points, labelled at the ends (SUS, Godspeed)
@@ -166,7 +168,8 @@ def instrument_fields(item: dict[str, Any], at: str, problems: Any) -> dict[str,
     if anchors is not None:
         if (not isinstance(anchors, list) or len(anchors) != 2
                 or not all(isinstance(a, str) and 0 < len(a) <= 60 for a in anchors)):
-            problems.add(f"{at}.anchors", f"expected two labels (the low and the high end), got {anchors!r}")
+            problems.add(f"{at}.anchors", "expected two labels (the low and the high end), each text of 1 to 60 "
+                         f"characters, got {shown(anchors)}")
         else:
             out["anchors"] = list(anchors)
     elif item.get("kind") in INSTRUMENT_KINDS:

@@ -68,12 +68,12 @@ def withdraw(ctx: Context, token: str, *, key: str | None = None) -> dict[str, A
     return state
 
 
-def _erase(ctx: Context, s: Any, participant: ParticipantRow, n_tasks: int, *, reason: str) -> None:
+def _erase(ctx: Context, s: Any, participant: ParticipantRow, n_tasks: int, *, reason: str, by: str) -> None:
     """Delete everything a participant left and record who erased them (in the caller's transaction)."""
     _forget_robot(ctx, participant, n_tasks)
     repo.delete_participant_data(s, participant_id=participant.id)
     repo.add_erasure(s, values={"study_id": participant.study_id, "participant_id": participant.id,
-                                "erased_by": "experimenter", "reason": reason, "pilot": participant.pilot})
+                                "erased_by": by[:64], "reason": reason, "pilot": participant.pilot})
     p = participant
     p.stage, p.token = "erased", "erased-" + secrets.token_urlsafe(24)  # the old link stops working
     p.prolific_pid = p.external_study_id = p.external_session_id = None
@@ -81,8 +81,9 @@ def _erase(ctx: Context, s: Any, participant: ParticipantRow, n_tasks: int, *, r
     p.end_reason, p.n_events, p.finished_at = reason, 0, utcnow()
 
 
-def erase_participant(ctx: Context, study_id: str, participant_id: int) -> None:
-    """Erase one participant's data (idempotent: erasing an erased participant changes nothing)."""
+def erase_participant(ctx: Context, study_id: str, participant_id: int, *, by: str) -> None:
+    """Erase one participant's data (idempotent: erasing an erased participant changes nothing); `by` is the
+    acting person's name (accounts.Actor), kept in the erasure log."""
     with ctx.db.write() as s:
         study = study_row(s, study_id)
         participant = repo.get_participant(s, study_id=study_id, participant_id=participant_id, include_erased=True)
@@ -91,19 +92,20 @@ def erase_participant(ctx: Context, study_id: str, participant_id: int) -> None:
         if participant.stage == "erased":
             return
         uid = participant.uid
-        _erase(ctx, s, participant, len(study.tasks), reason="erasure")
+        _erase(ctx, s, participant, len(study.tasks), reason="erasure", by=by)
         commit(s)
     delete_recordings_of(ctx, uid)
 
 
-def reset_pilot(ctx: Context, study_id: str) -> dict[str, Any]:
-    """Erase every pilot participant of a study; the others are not touched."""
+def reset_pilot(ctx: Context, study_id: str, *, by: str) -> dict[str, Any]:
+    """Erase every pilot participant of a study (the erasure log names `by`, the acting person); the others are
+    not touched."""
     with ctx.db.write() as s:
         study = study_row(s, study_id)
         pilots = [p for p in repo.list_participants(s, study_id=study_id) if p.pilot]
         erased = [(p.id, p.uid) for p in pilots]
         for p in pilots:
-            _erase(ctx, s, p, len(study.tasks), reason="pilot_reset")
+            _erase(ctx, s, p, len(study.tasks), reason="pilot_reset", by=by)
         commit(s)
     for _, uid in erased:
         delete_recordings_of(ctx, uid)

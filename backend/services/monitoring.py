@@ -88,10 +88,11 @@ def _formula_view(mask: int) -> tuple[str, str]:
 # Keyed by the data so far, not by the whole session: when a participant adds a step, the dashboard's
 # next poll computes that one step, not all of them again. Callers must not change what it returns.
 @lru_cache(maxsize=16384)
-def belief_view(task: str, prior: str, data: tuple[tuple[core.Trace, bool], ...], truth_formula: str | None,
-                top: int) -> dict[str, Any]:
-    """Entropy, similarity to the truth, MAP and top formulas of the belief after these labelled executions."""
-    belief = core.belief_after(task, prior, data)
+def belief_view(task: str, prior: str, data: core.Verdicts, truth_formula: str | None, top: int,
+                flip_rate: float = 0.0) -> dict[str, Any]:
+    """Entropy, similarity to the truth, MAP and top formulas of the belief after these (trace, acceptable,
+    is_verdict) items, for the learner with this flip rate (0: the authors')."""
+    belief = core.noisy_belief_after(task, prior, flip_rate, data)
     truth = None if truth_formula is None else get_domain("dinner").clause_space.mask_of_formula(truth_formula)
     map_formula, map_description = _formula_view(belief.map_mask)
     top_formulas = []
@@ -117,8 +118,8 @@ def belief_summary(ctx: Context, study_id: str, participant_id: int, *, top: int
         for ts in repo.task_sessions_of(s, participant_id=participant.id):
             state = session_of(ts.state_json)
             task = study.tasks[ts.task_index]
-            view = belief_view(state.config.task, state.config.prior, core.learning_data(state),
-                               task.get("ground_truth"), top)
+            view = belief_view(state.config.task, state.config.prior, core.learning_verdicts(state),
+                               task.get("ground_truth"), top, state.config.flip_rate)
             tasks.append({"task_index": ts.task_index, "task": task["key"], "phase": state.phase,
                           "n_observations": len(state.learning_records), **view})
         return {"participant_id": participant.id, "condition": participant.condition, "stage": participant.stage,

@@ -10,6 +10,8 @@ from typing import Any, Protocol
 
 from pydantic import BaseModel, ConfigDict, Field
 
+from .plain_words import shown
+
 # field -> (heading on the consent page, longest text accepted)
 CONSENT_FORM_FIELDS: dict[str, tuple[str, int]] = {
     "researcher": ("Who is running this study", 200),
@@ -68,7 +70,8 @@ def check_page_settings(spec: dict[str, Any], problems: _Problems) -> dict[str, 
     form = spec.get("consent_form") or {}
     clean: dict[str, str] = {}
     if not isinstance(form, dict):
-        problems.add("consent_form", f"expected an object with some of {', '.join(CONSENT_FORM_FIELDS)}, got {form!r}")
+        problems.add("consent_form", f"expected an object with some of {', '.join(CONSENT_FORM_FIELDS)}, "
+                     f"got {shown(form)}")
         form = {}
     for name, value in form.items():
         if name not in CONSENT_FORM_FIELDS:
@@ -79,14 +82,14 @@ def check_page_settings(spec: dict[str, Any], problems: _Problems) -> dict[str, 
         if value is None or value == "":
             continue
         if not isinstance(value, str) or len(value) > longest:
-            problems.add(f"consent_form.{name}", f"must be text of at most {longest} characters, got {value!r:.60}")
+            problems.add(f"consent_form.{name}", f"must be text of at most {longest} characters, got {shown(value)}")
             continue
         clean[name] = value.strip()
     flags = {}
     for name, default in (("allow_anonymous", False), ("quiz_feedback", True)):
         value = spec.get(name, default)
         if not isinstance(value, bool):
-            problems.add(name, f"must be true or false, got {value!r}")
+            problems.add(name, f"must be true or false, got {shown(value)}")
             value = default
         flags[name] = value
     return {"consent_form": clean, **flags}

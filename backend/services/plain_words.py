@@ -32,10 +32,13 @@ def _options(expected: str) -> str:
 
 
 def _bounds(ctx: Mapping[str, Any]) -> str:
-    low = ctx.get("ge", ctx.get("gt"))
-    high = ctx.get("le", ctx.get("lt"))
+    low, high = ctx.get("ge", ctx.get("gt")), ctx.get("le", ctx.get("lt"))
     if low is not None and high is not None:
         return f"from {low:g} to {high:g}"
+    if "gt" in ctx:
+        return f"above {low:g}"
+    if "lt" in ctx:
+        return f"below {high:g}"
     if low is not None:
         return f"of at least {low:g}"
     return f"of at most {high:g}"

@@ -195,6 +195,12 @@ class Runtime:
     # -- job runners ---------------------------------------------------------------------------------
     def _run_jobs(self) -> None:
         while not self._stop.is_set():
+            # A read first: claiming takes the write lock, which an idle runner should not take every second.
+            wait = self._until_claimable()
+            if wait > 0:
+                self._wake.wait(wait)
+                self._wake.clear()
+                continue
             try:
                 ran = self._run_batch()
             except TryLater:
@@ -204,25 +210,26 @@ class Runtime:
                 log.exception("a job runner failed; it goes on")
                 ran = 0
                 self._stop.wait(backoff(3))
-            if ran == 0:
-                self._wake.wait(self._idle_wait())
+            if ran == 0:  # another runner took them first
+                self._wake.wait(0.05)
                 self._wake.clear()
 
-    def _idle_wait(self) -> float:
+    def _until_claimable(self) -> float:
+        """Seconds until a stored job can be claimed (0: now), at most the poll interval (other processes' jobs)."""
         ctx = self._ctx
         if ctx is None:
             return self.poll_seconds
         try:
             with ctx.db.read() as s:
-                due = job_rows.next_due(s)
+                at = job_rows.next_claimable(s)
         except Exception:  # noqa: BLE001 - polling again later finds it
             return self.poll_seconds
-        if due is None:
+        if at is None:
             return self.poll_seconds
         from .context import aware
 
-        left = ((aware(due) or utcnow()) - utcnow()).total_seconds()
-        return min(self.poll_seconds, max(0.01, left))
+        left = ((aware(at) or utcnow()) - utcnow()).total_seconds()
+        return 0.0 if left <= 0 else min(self.poll_seconds, left)
 
     def _run_batch(self) -> int:
         ctx = self._ctx
@@ -282,14 +289,16 @@ class Runtime:
 
     # -- periodic ------------------------------------------------------------------------------------
     def _sweep(self) -> None:
-        """Every sweep_seconds: screen out participants idle past their study's time-out (on the action queue)."""
+        """Every sweep_seconds: screen out participants idle past their study's time-out, and remove this host's
+        cached recordings of participants erased elsewhere (on the action queue)."""
         if self._stop.is_set() or self._ctx is None or self._actions is None:
             return
-        from .timeouts import sweep_timeouts
+        from .timeouts import forget_erased_copies, sweep_timeouts
 
         ctx = self._ctx
         try:
             self._actions.submit(lambda: sweep_timeouts(ctx))
+            self._actions.submit(lambda: forget_erased_copies(ctx))
         except RuntimeError:
             return  # shutting down
         self.scheduler.call_later(self.sweep_seconds, self._sweep)

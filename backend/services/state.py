@@ -15,6 +15,7 @@ from ..core.domain import DINNER_OBJECTS, get_domain
 from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..db import jobs as job_rows
+from ..db import recording_rows
 from ..errors import Conflict, NotAuthenticated
 from ..recording_store import RecordingId
 from . import executions, outcomes
@@ -89,12 +90,28 @@ def apply_speed(ctx: Context, key: str, study: StudyRow) -> None:
 
 def save_recording(ctx: Context, participant: ParticipantRow, task_index: int, kind: str, index: int) -> None:
     """Ask the robot to keep this step's motion; a failure is logged, never shown to the participant."""
+    rid = RecordingId(participant.uid, task_index, kind, index)
     try:
-        ctx.robot.save_recording(robot_key(participant, task_index),
-                                 RecordingId(participant.uid, task_index, kind, index).name)
+        ctx.robot.save_recording(robot_key(participant, task_index), rid.name)
+        keep_recording(ctx, participant.id, rid)
     except Exception:
         log.exception("could not save the recording of participant %s task %s %s %s", participant.id, task_index,
                       kind, index)
+
+
+def keep_recording(ctx: Context, participant_id: int, rid: RecordingId) -> None:
+    """Add a saved step's files to the store every host reaches (a short transaction; nothing for local files),
+    unless the participant has left meanwhile (erasure forgets their files)."""
+    files = ctx.store.finished(rid)
+    if not files:
+        return
+    with ctx.db.write() as s:
+        repo.lock_participant_id(s, participant_id=participant_id)
+        participant = s.get(ParticipantRow, participant_id, populate_existing=True)
+        if participant is None or participant.stage in ("erased", "withdrawn"):
+            return
+        recording_rows.add_files(s, files)
+        repo.commit(s)
 
 
 def delete_recordings(ctx: Context, participant: ParticipantRow) -> int:
@@ -111,6 +128,7 @@ def session_config(study: StudyRow, participant: ParticipantRow, task_index: int
         n_practice=study.n_practice if task_sequence(study, participant)[0] == task_index else 0,
         n_demonstrations=study.n_demonstrations, n_queries=study.n_queries, n_tests=study.n_tests,
         criterion=study.criterion, seed=(participant.seed + task_index) % (2**31),
+        flip_rate=float(study.flip_rate or 0.0),  # the noise-aware learner, if the study uses it
     )
 
 
@@ -246,11 +264,11 @@ def participant_state(ctx: Context, token: str, *, replayed: bool = False) -> di
 def participant_and_study(s: Any, token: str) -> tuple[ParticipantRow, StudyRow]:
     found = repo.get_participant_and_study(s, token=token) if token else None
     if found is None:
-        raise _unknown_token()
+        raise unknown_token()
     return found
 
 
-def _unknown_token() -> NotAuthenticated:
+def unknown_token() -> NotAuthenticated:
     return NotAuthenticated("unknown participant token; use the link you were given (Authorization: Bearer <token>)")
 
 
@@ -319,7 +337,7 @@ def act(ctx: Context, token: str, action: str, body: dict[str, Any], key: str | 
             repo.lock_participant(s, token=token)  # one request per participant at a time (PostgreSQL)
         found = repo.get_participant_for_request(s, token=token, client_event_id=key) if token else None
         if found is None:
-            raise _unknown_token()
+            raise unknown_token()
         participant, study, earlier = found
         participant_id = participant.id
         if earlier is None and action != "withdraw" and timed_out(study, participant):

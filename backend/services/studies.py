@@ -125,6 +125,7 @@ def _study_values(spec: dict[str, Any]) -> dict[str, Any]:
         "quiz_max_attempts": d.quiz_max_attempts,
         "timeout_minutes": d.timeout_minutes,
         "robot_speed": float(d.robot_speed),
+        "flip_rate": float(d.flip_rate),
         "places": d.places,
         **check_page_settings(spec, ProblemList()),  # checked by validate_study already
         "status": "draft",
@@ -152,7 +153,8 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "completion_url": study.completion_url, **{name: getattr(study, name) for name in CODE_FIELDS},
         "task_order": study.task_order, "quiz": study.quiz,
         "quiz_max_attempts": study.quiz_max_attempts, "timeout_minutes": study.timeout_minutes,
-        "robot_speed": study.robot_speed, "places": study.places, "archived_at": iso(study.archived_at),
+        "robot_speed": study.robot_speed, "flip_rate": float(study.flip_rate or 0.0),
+        "places": study.places, "archived_at": iso(study.archived_at),
         **page_settings_view(study),
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }

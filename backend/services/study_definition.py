@@ -15,6 +15,7 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from ..core import session as core
+from ..core.belief import MAX_FLIP_RATE
 from ..core.domain import DINNER_OBJECTS, DINNER_TASK_FORMULAS, get_domain
 from ..core.ltl import to_text
 from ..core.priors import NAMED_PRIORS
@@ -187,6 +188,8 @@ class StudyIn(Definition):
     consent_form: ConsentFormIn | None = Field(None, description="the structured consent form's sections")
     allow_anonymous: bool = Field(False, description="a link without PROLIFIC_PID joins without asking for an id")
     quiz_feedback: bool = Field(True, description="a failed quiz names the wrong answers")
+    flip_rate: float = Field(0.0, ge=0.0, lt=MAX_FLIP_RATE, description="the noise-aware learner: the probability "
+                             "it assumes each verdict is wrong (0: the authors' learner, every verdict certain)")
     places: int | None = Field(None, ge=1, le=MAX_PLACES, description="participants the study takes, counted as "
                                "Prolific does (finished plus under way); then joining answers 409 (empty: no limit)")
 

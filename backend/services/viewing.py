@@ -9,11 +9,12 @@ from typing import Any, NamedTuple
 from ..errors import Conflict, InvalidInput
 from ..recording_store import RecordingId
 from ..robot import ViewAddress
+from ..db import repository as repo
 from . import executions
 from .context import Context
 from .placements import sync_robot_table
 from .planning import position_of
-from .state import Action, Expect, act, current_task, participant_and_study, robot_key
+from .state import Action, Expect, act, current_task, participant_and_study, robot_key, unknown_token
 from .teaching import _teaching as teaching_step  # the same step check as the other teaching actions
 from .teaching import place_object
 
@@ -140,46 +141,30 @@ def replay_execution(ctx: Context, token: str, *, expect: Expect, key: str | Non
     return act(ctx, token, "replay", dict(expect.__dict__), key, run)
 
 
-def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
-    """What the participant's robot is doing now: moving, a caption, and how many views are connected."""
-    with ctx.db.read() as s:
-        participant, study_row = participant_and_study(s, token)
-        ts = current_task(s, participant)
-        key = None if ts is None else robot_key(participant, ts.task_index)
-        ex = None if ts is None else ts.execution
-    robot = ctx.robot
-    activity = robot.activity(key) if key is not None else None
-    out = {"view": robot.shows_view, "moving": bool(activity and activity.moving),
-           "caption": activity.caption if activity else "", "watchers": activity.watchers if activity else 0}
-    if ex is not None and ex["status"] == "running":
-        # An execution's progress is in the database, whichever process started it.
-        progress = executions.progress(ex)
-        out.update(moving=not progress.finished, caption=progress.caption)
-    elif ex is not None and executions.replaying(ex):
-        out.update(moving=True, caption=executions.REPLAY_CAPTION)
-    return out
-
-
 def next_robot_change(ctx: Context, token: str) -> float | None:
     """Seconds until the participant's execution reaches its next stored action end (or its replay ends), if any."""
     with ctx.db.read() as s:
-        participant, _study = participant_and_study(s, token)
-        ts = current_task(s, participant)
-        return executions.next_change_in(None if ts is None else ts.execution)
+        row = repo.poll_row(s, token=token)
+    if row is None:
+        raise unknown_token()
+    return executions.next_change_in(row.execution)
 
 
 def claim_tab(ctx: Context, token: str, tab_id: str, *, takeover: bool = False) -> dict[str, Any]:
     """Hold (or renew) the one-tab lease of the participant's page; held is False while another tab holds it."""
-    with ctx.db.read() as s:
-        participant, study_row = participant_and_study(s, token)
-        pid = participant.id
-    held = ctx.tabs.claim(pid, tab_id, takeover=takeover)
+    held = ctx.tabs.claim(_participant_id(ctx, token), tab_id, takeover=takeover)
     return {"held": held, "lease_seconds": ctx.tabs.seconds}
 
 
 def release_tab(ctx: Context, token: str, tab_id: str) -> None:
     """The tab is going away (reload or close): let the next one take over at once."""
+    ctx.tabs.release(_participant_id(ctx, token), tab_id)
+
+
+def _participant_id(ctx: Context, token: str) -> int:
+    """The participant's number, from the small poll query (no ORM objects)."""
     with ctx.db.read() as s:
-        participant, study_row = participant_and_study(s, token)
-        pid = participant.id
-    ctx.tabs.release(pid, tab_id)
+        row = repo.poll_row(s, token=token)
+    if row is None:
+        raise unknown_token()
+    return row.participant_id

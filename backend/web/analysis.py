@@ -7,7 +7,9 @@ from typing import Annotated, Any, Literal
 from fastapi import APIRouter, Query
 from pydantic import BaseModel, Field
 
+from ..core.counterfactual import spec_pattern
 from ..services import analysis
+from ..services import what_if as what_if_service
 from .deps import ContextDep, Experimenter, ParticipantId, StepIndex
 from .schemas import ParticipantBaseOut, error_responses
 
@@ -29,11 +31,33 @@ class LiveStepOut(StepOut):
     task_index: int
 
 
+class TaskConsistencyOut(BaseModel):
+    """One task's teacher consistency (docs/experiments.md, "Teacher consistency")."""
+
+    task_index: int
+    score: float | None = Field(description="mean probability the learner gave the participant's verdicts just "
+                                "before each (queries and tests); null without verdicts")
+    lowest: float | None = Field(description="the least probable verdict's probability")
+    n_verdicts: int
+    flagged: bool = Field(description="a verdict's probability was below flag_below")
+
+
+class ConsistencyOut(BaseModel):
+    """A participant's teacher consistency over the tasks they started."""
+
+    score: float | None = Field(description="the lowest task score")
+    flagged: bool = Field(description="some task is flagged: a reason to look at the session, not a verdict on "
+                          "the participant")
+    flag_below: float
+    tasks: list[TaskConsistencyOut]
+
+
 class LiveRowOut(ParticipantBaseOut):
     n_tasks: int
     step: LiveStepOut | None
     dropout: bool = Field(description="not finished and inactive longer than dropout_minutes")
     inactive_minutes: float
+    consistency: ConsistencyOut
 
 
 class LiveOut(BaseModel):
@@ -87,6 +111,19 @@ class ExecutionOut(BaseModel):
     finished_at: str | None
 
 
+class SessionConsistencyOut(BaseModel):
+    """A task's verdicts' probabilities, each just before the verdict was given."""
+
+    p_verdicts: list[float | None] = Field(description="per learning step (0: the prior): a query's verdict's "
+                                           "probability, null for the prior and demonstrations")
+    p_tests: list[float] = Field(description="per assessed test, in order (against the final belief)")
+    n_verdicts: int
+    score: float | None
+    lowest: float | None
+    flagged: bool
+    flag_below: float
+
+
 class TaskHistoryOut(BaseModel):
     task_index: int
     task: str
@@ -96,6 +133,7 @@ class TaskHistoryOut(BaseModel):
     step: StepOut
     steps: list[BeliefStepOut]
     executions: list[ExecutionOut]
+    consistency: SessionConsistencyOut
 
 
 class EventOut(BaseModel):
@@ -189,6 +227,57 @@ def curves(study_id: str, ctx: ContextDep,
            ) -> dict[str, Any]:
     """Learning curves per task and condition: median similarity and mean entropy after each learning step."""
     return analysis.learning_curves(ctx, study_id, finished_only=finished_only, include_pilot=include_pilot)
+
+
+class WhatIfStepOut(BaseModel):
+    """A learner's belief after `step` learning records (0: the prior)."""
+
+    step: int
+    similarity: float | None
+    entropy: float
+    map_formula: str
+
+
+class WhatIfLearnerOut(BaseModel):
+    learner: str = Field(description="the spec as given; 'study' is the study's own learner")
+    prior: str
+    flip_rate: float = Field(description="0: the authors' learner; above: the noise-aware one")
+    data: Literal["all", "demonstrations"]
+    steps: list[WhatIfStepOut]
+
+
+class WhatIfTaskOut(BaseModel):
+    task_index: int
+    task: str
+    name: str | None
+    has_ground_truth: bool
+    records: list[Literal["demonstration", "query"] | None] = Field(description="per step, what was learned from")
+    learners: list[WhatIfLearnerOut]
+
+
+class WhatIfOut(BaseModel):
+    study_id: str
+    participant_id: int
+    study_prior: str
+    study_flip_rate: float
+    tasks: list[WhatIfTaskOut]
+
+
+# What the service accepts, for the schema (the service checks it, so a refusal names the spec and what it expects).
+LEARNERS_SCHEMA: dict[str, Any] = {"items": {"type": "string", "pattern": spec_pattern()},
+                                   "maxItems": what_if_service.MAX_LEARNERS, "uniqueItems": True}
+
+
+@router.get("/{study_id}/participants/{participant_id}/what-if", response_model=WhatIfOut)
+def what_if(study_id: str, participant_id: ParticipantId, ctx: ContextDep,
+            learner: Annotated[list[str] | None, Query(json_schema_extra=LEARNERS_SCHEMA, description=(
+                "a learner to replay the participant's data through (repeatable, at most 6): settings prior=NAME, "
+                "flip=P (noise-aware, P in [0, 0.5); flip=0 the authors'), data=all|demonstrations, "
+                "comma-separated; unset ones are the study's. Default: flip=0.1 and data=demonstrations"))] = None,
+            ) -> dict[str, Any]:
+    """What the participant's recorded demonstrations and verdicts teach other learners, step by step, beside the
+    study's own learner (read only; the dashboard's view of ``tableteach replay``)."""
+    return what_if_service.what_if(ctx, study_id, participant_id, learner or [])
 
 
 class TableOut(BaseModel):

@@ -15,10 +15,11 @@ from . import errors, exports, pages, participants, studies
 from . import accounts, analysis, dashboard, events, instruments, motion, openapi, prolific, viewer
 from .audit import AuditWrites
 from .auth import experimenter_checker
+from .conditional import PollsNotModified
 from .deps import require_experimenter
 from .events import Feeds
 from .limits import AddressLimiter, BodyLimit
-from .methods import AllowedMethods
+from .methods import AllowedMethods, route_table
 from .robots import make_recording_store, make_robot
 from .streams import StreamSlots
 from .schemas import error_responses
@@ -42,11 +43,13 @@ def _common_errors(router: APIRouter) -> dict[int | str, dict[str, Any]]:
 def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI:
     """The FastAPI application for these settings (ValueError if the experimenter secret is unacceptable)."""
     checker, dev_token = experimenter_checker(settings)
-    ctx = context or Context.from_settings(settings, make_robot(settings), make_recording_store(settings))
+    ctx = context or Context.from_settings(settings, make_robot(settings),
+                                          lambda db: make_recording_store(settings, db))
 
     @asynccontextmanager
     async def lifespan(_app: FastAPI) -> AsyncIterator[None]:
         ctx.start()  # the runtime: job runners (durable background work), scheduler, action queue, robot
+        route_table(_app)  # FastAPI resolves its routes on first use (~0.3 s of CPU): at start-up, not in a request
         yield
         ctx.close()  # handlers under way end; the robot, the notifier's connections and the database close
 
@@ -67,6 +70,7 @@ def create_app(settings: Settings, *, context: Context | None = None) -> FastAPI
     app.add_middleware(BodyLimit)
     app.add_middleware(AuditWrites)
     app.add_middleware(AllowedMethods, routes_of=lambda: app)
+    app.add_middleware(PollsNotModified)  # outermost of ours: a poll that finds nothing new ends here
     for module in (participants, studies, exports, analysis, accounts, prolific, dashboard, motion, viewer, events,
                    pages, instruments):
         app.include_router(module.router, responses=_common_errors(module.router))

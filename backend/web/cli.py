@@ -1,5 +1,5 @@
 """Server subcommands of `tableteach`: serve, migrate, backup, restore, teach (a scripted teacher over HTTP), export,
-key, hash-token."""
+key, hash-token, warm-robot."""
 
 from __future__ import annotations
 
@@ -19,6 +19,11 @@ def _settings(args: argparse.Namespace) -> Settings:
     if getattr(args, "dev", False) or getattr(args, "demo", False):
         overrides["dev_mode"] = True
     return Settings(**overrides)
+
+
+def _store_name(settings: Settings) -> str:
+    """Where the recordings are kept, in words."""
+    return "database" if settings.recording_store == "database" else "data folder"
 
 
 def cmd_serve(args: argparse.Namespace) -> None:
@@ -45,7 +50,7 @@ def cmd_serve(args: argparse.Namespace) -> None:
     base = settings.public_url or f"http://{settings.host}:{settings.port}"
     lines = [f"TableTeach serving on http://{settings.host}:{settings.port} "
              f"(database {_safe_url(settings.database_url)}, "
-             f"robot {settings.robot})",
+             f"robot {settings.robot}, recordings in the {_store_name(settings)})",
              f"dashboard: {base}/dashboard   API schema: {base}/openapi.json"
              + (f"   API docs (dev mode): {base}/docs" if settings.dev_mode else "")]
     if args.demo:
@@ -197,6 +202,21 @@ def cmd_hash_token(args: argparse.Namespace) -> dict:
     return {"experimenter_token_hash": hash_secret(secret)}
 
 
+def cmd_warm_robot(args: argparse.Namespace) -> dict:
+    """Simulate the MuJoCo robot's placements ahead, into the data folder's clip files."""
+    import time
+
+    from .robots import warm_robot
+
+    if args.tasks < 1:
+        raise ValueError(f"--tasks {args.tasks}: expected at least 1 (how many tasks the studies have)")
+    settings = _settings(args)
+    started = time.process_time()
+    done = warm_robot(settings, args.tasks)
+    return {"data_dir": str(settings.data_dir), "tasks": args.tasks, **done,
+            "cpu_seconds": round(time.process_time() - started, 1)}
+
+
 def register(sub: argparse._SubParsersAction) -> None:
     """Add the server subcommands to the `tableteach` parser."""
     serve = sub.add_parser("serve", help="migrate the database and run the study server")
@@ -266,6 +286,13 @@ def register(sub: argparse._SubParsersAction) -> None:
                         "questionnaire.csv, codebook.csv, datapackage.json and study.json")
     export.add_argument("--include-pilot", action="store_true", help="also pilot participants (left out by default)")
     export.set_defaults(run=cmd_export)
+
+    warm = sub.add_parser("warm-robot", help="simulate every placement the MuJoCo robot's tables can ask for, once "
+                                             "per data folder (about 80 s of CPU per task; optional: it only "
+                                             "spares the first participants' physics)")
+    warm.add_argument("--tasks", type=int, default=2, help="how many tasks (task indices 0..N-1; default 2)")
+    warm.add_argument("--data-dir", help="the server's data folder (default var/data; TABLETEACH_DATA_DIR)")
+    warm.set_defaults(run=cmd_warm_robot)
 
     key = sub.add_parser("key", help="generate an experimenter key (TABLETEACH_EXPERIMENTER_TOKEN) and its hash")
     key.set_defaults(run=cmd_key)

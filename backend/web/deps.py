@@ -75,6 +75,11 @@ def _authorize(request: Request, actor: accounts.Actor) -> None:
                         "(analyst: read and export only; experimenter: studies and participants; owner: everything)")
 
 
+async def acting_person(request: Request, _: Annotated[None, Depends(require_experimenter)]) -> accounts.Actor:
+    """Who makes this experimenter request (the check runs once per request: FastAPI caches it)."""
+    return request.state.experimenter
+
+
 async def join_allowed(request: Request) -> None:
     """Refuse a join with 429 once this client address has made joins_per_address of them in the window."""
     limiter: AddressLimiter = request.app.state.joins
@@ -94,6 +99,7 @@ IdempotencyKey = Annotated[
            description="a fresh id per action (e.g. a UUID); repeating it repeats nothing"),
 ]
 Experimenter = Depends(require_experimenter)
+ActorDep = Annotated[accounts.Actor, Depends(acting_person)]
 JoinAllowed = Depends(join_allowed)
 # Ids and indices in paths are bounded to what the database stores (a 32-bit integer column): a larger number
 # is a 422 naming the parameter, never an OverflowError deep in the database driver.

@@ -198,16 +198,11 @@ async def change_events(token: str, ctx: ContextDep, request: Request) -> Respon
         return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
 
     def read() -> tuple[dict | None, float | None]:
-        robot = due = None
         try:
-            robot = services.robot_activity(ctx, token)
-        except Exception:  # the activity is a head start for the page; it reads the state next anyway
-            log.exception("robot activity for a change event failed")
-        try:
-            due = services.next_robot_change(ctx, token)
-        except Exception:  # the stored clock is a back-up for the notices; they keep coming without it
-            log.exception("the next stored action end for a change event failed")
-        return robot, due
+            return services.activity_and_next_change(ctx, token)
+        except Exception:  # a head start and a back-up clock for the page; it reads the state next anyway
+            log.exception("the robot activity for a change event failed")
+            return None, None
 
     feeds = feeds_of(request)
     opened = feeds.open(pid, ctx.notifier, lambda: run_in_threadpool(read))

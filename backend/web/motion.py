@@ -48,9 +48,10 @@ async def motion_file(token: str, task_index: int, step_kind: str, step_index: i
         return PlainTextResponse(f"No such recording: {exc}", status_code=404)
     path = ctx.store.playable(rid)
     deadline = time.monotonic() + WAIT_SECONDS
-    while not path.is_file() and time.monotonic() < deadline:
+    # The local file, or one this host fetches from the store every host reaches (TABLETEACH_RECORDING_STORE).
+    while not (ready := await run_in_threadpool(ctx.store.ready, rid)) and time.monotonic() < deadline:
         await asyncio.sleep(POLL_SECONDS)
-    if not path.is_file():
+    if not ready:
         return PlainTextResponse(f"No recording of {step_kind} {step_index + 1} in task {task_index + 1} yet.",
                                  status_code=404)
     return FileResponse(path, media_type="application/octet-stream",

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import Annotated
+from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Request, Response, status
 from starlette.concurrency import run_in_threadpool
@@ -10,6 +10,7 @@ from starlette.concurrency import run_in_threadpool
 from .. import services
 from ..services import attention
 from .browser import browser_secret, remember_browser
+from .conditional import NOT_MODIFIED, client_has, not_modified, tag_answer
 from .deps import ContextDep, IdempotencyKey, JoinAllowed, TokenDep
 from .page_schemas import SignalIn
 from .schemas import (AssessmentIn, ConsentIn, JoinIn, JoinOut, ParticipantState, PlacementIn,
@@ -48,10 +49,17 @@ async def join(study_id: str, ctx: ContextDep, request: Request, response: Respo
     return {"participant_id": state["participant_id"], "token": state["token"], "created": created, "state": state}
 
 
-@router.get("/me", response_model=ParticipantState)
-async def get_state(ctx: ContextDep, token: TokenDep) -> dict:
-    """The participant's current state (records a robot execution that has finished meanwhile)."""
-    return await run_in_threadpool(services.participant_state, ctx, token)
+@router.get("/me", response_model=ParticipantState, responses=NOT_MODIFIED)
+async def get_state(request: Request, response: Response, ctx: ContextDep, token: TokenDep) -> Any:
+    """The participant's current state, with an ETag: a poll that sends it back (If-None-Match) while nothing
+    changed is answered 304 from one small query."""
+    if request.headers.get("if-none-match"):
+        current = await run_in_threadpool(services.current_state_tag, ctx, token)
+        if current is not None and client_has(request, current):
+            return not_modified(current)
+    state, tag = await run_in_threadpool(services.tagged_state, ctx, token)
+    tag_answer(response, tag)
+    return state
 
 
 @router.post("/me/consent", response_model=ParticipantState)

@@ -4,6 +4,8 @@ trace robot, or the MuJoCo one, imported only when the settings name it), the re
 from __future__ import annotations
 
 from ..config import Settings
+from ..db.engine import Database
+from ..db.shared_recordings import make_store
 from ..recording_store import RecordingStore
 from ..robot import Robot, TraceRobot
 
@@ -19,11 +21,20 @@ def make_robot(settings: Settings) -> Robot:
     raise ValueError(f"unknown robot {settings.robot!r}; expected 'trace' or 'mujoco'")
 
 
-def make_recording_store(settings: Settings) -> RecordingStore:
-    """The recording store the services use: files under the data folder, with the scene's top view."""
+def warm_robot(settings: Settings, tasks: int) -> dict[str, int]:
+    """Have the MuJoCo robot simulate every placement of the first `tasks` tasks' tables ahead (clip files under
+    the data folder, shared by every process); how many it simulated and how many were kept already."""
+    from ..sim.robot import warm_tables  # imports mujoco
+
+    return warm_tables(settings.data_dir, range(tasks))
+
+
+def make_recording_store(settings: Settings, db: Database) -> RecordingStore:
+    """The recording store the services use: files under the data folder, with the scene's top view; with
+    TABLETEACH_RECORDING_STORE=database, kept in the database and that folder a cache of them."""
     from ..sim.top_view import scene_store  # MuJoCo is imported only when a replay asks for the layout
 
-    return scene_store(settings.data_dir)
+    return make_store(settings.recording_store, scene_store(settings.data_dir), db, settings.data_dir)
 
 
 def viewer_client_html() -> bytes:

@@ -271,6 +271,8 @@ class StudyOut(BaseModel):
     quiz_max_attempts: int
     timeout_minutes: int | None
     robot_speed: float = 1.0
+    flip_rate: float = Field(0.0, description="the learner's assumed verdict-flip probability (0: the authors' "
+                             "learner)")
     places: int | None = None
     archived_at: str | None = Field(None, description="when the study was archived (hidden from the list)")
     consent_form: dict[str, str] = Field(default_factory=dict)

@@ -7,7 +7,7 @@ from typing import Annotated, Any
 from fastapi import APIRouter, Body, Query, Response, status
 from .. import services
 from ..services.study_definition import FORMULA_PATTERN
-from .deps import ContextDep, Experimenter, ParticipantId
+from .deps import ActorDep, ContextDep, Experimenter, ParticipantId
 from .schemas import (BeliefOut, ErasureOut, FormulaDescriptionOut, ParticipantBaseOut, ParticipantRowOut,
                       PilotResetOut, StatisticsOut, StudyIn, StudyOut, error_responses)
 
@@ -97,9 +97,9 @@ def close_study(study_id: str, ctx: ContextDep) -> dict:
 
 
 @router.post("/{study_id}/pilot/reset", response_model=PilotResetOut)
-def reset_pilot(study_id: str, ctx: ContextDep) -> dict:
+def reset_pilot(study_id: str, ctx: ContextDep, actor: ActorDep) -> dict:
     """Erase every pilot participant of the study (each gets an audit entry); nobody else is touched."""
-    return services.reset_pilot(ctx, study_id)
+    return services.reset_pilot(ctx, study_id, by=actor.name)
 
 
 @router.get("/{study_id}/participants", response_model=list[ParticipantRowOut])
@@ -110,26 +110,26 @@ def list_participants(study_id: str, ctx: ContextDep) -> list[dict]:
 
 @router.delete("/{study_id}/participants/{participant_id}", status_code=status.HTTP_204_NO_CONTENT,
                response_class=Response)
-def erase_participant(study_id: str, participant_id: ParticipantId,
-                      ctx: ContextDep) -> Response:
+def erase_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep,
+                      actor: ActorDep) -> Response:
     """Erase one participant's events, answers, beliefs and robot recordings; an audit entry (no personal data)
     is kept. Erasing again answers 204 too."""
-    services.erase_participant(ctx, study_id, participant_id)
+    services.erase_participant(ctx, study_id, participant_id, by=actor.name)
     return Response(status_code=status.HTTP_204_NO_CONTENT)
 
 
 @router.post("/{study_id}/participants/{participant_id}/restore", response_model=ParticipantBaseOut)
-def restore_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict:
+def restore_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep, actor: ActorDep) -> dict:
     """Bring back a participant who timed out (where they were), failed the quiz (fresh attempts) or declined
     consent; logged as a "restored" event. 409 for anyone else."""
-    return services.restore_participant(ctx, study_id, participant_id)
+    return services.restore_participant(ctx, study_id, participant_id, by=actor.name)
 
 
 @router.post("/{study_id}/participants/{participant_id}/help", response_model=ParticipantBaseOut)
-def help_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dict:
+def help_participant(study_id: str, participant_id: ParticipantId, ctx: ContextDep, actor: ActorDep) -> dict:
     """Move a stuck participant past their stage (instructions, quiz, the current task, questionnaire); logged
     as a "helped_on" event. 409 at consent or after the end."""
-    return services.help_on(ctx, study_id, participant_id)
+    return services.help_on(ctx, study_id, participant_id, by=actor.name)
 
 
 @router.get("/{study_id}/erasures", response_model=list[ErasureOut])

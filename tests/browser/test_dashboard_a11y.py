@@ -67,7 +67,9 @@ def test_every_dashboard_screen_passes_axe_core(trace_server: Any, browser_page:
         log_in(page, server.url, EXPERIMENTER_TOKEN)
         screens = [("studies", "#studies"), ("new", "#create"),
                    (f"study/{study}", "#statistics table"), (f"study/{study}/edit", "#create"),
-                   (f"study/{study}/p/{run.participant_id}", "dl.facts")]
+                   (f"study/{study}/p/{run.participant_id}", "dl.facts"),
+                   (f"study/{study}/prolific", "#reconciliation"), ("accounts", "#people-empty"),
+                   ("account", "#server-key-note")]
         for route, ready in screens:
             page.goto(f"{server.url}/dashboard#/{route}")
             page.wait_for_selector(ready)

@@ -155,7 +155,8 @@ def in_process_app(tmp_path: Path, robot: Any = None) -> Iterator[Any]:
     upgrade_head(settings.database_url)
     from tableteach.web.robots import make_recording_store
 
-    context = None if robot is None else Context.from_settings(settings, robot, make_recording_store(settings))
+    context = None if robot is None else Context.from_settings(settings, robot,
+                                                               lambda db: make_recording_store(settings, db))
     app = create_app(settings, context=context)
     with TestClient(app) as client:
         client.ctx = app.state.context  # type: ignore[attr-defined]

@@ -381,7 +381,9 @@ def test_one_read_per_change_is_shared_by_all_streams_of_a_participant(stream_se
         assert r.status_code == 200
         events = [s.next_event() for s in streams]
         assert all(name == "change" for name, _ in events) and len({d["n"] for _, d in events}) == 1
-        assert feed.reads == 2  # one read for the change, whatever the number of streams
+        # One read per change, whatever the number of streams: the placement's commit and perhaps the robot's stored
+        # labels right after it (its read may still be under way); three streams reading each would be 6 or more.
+        assert 2 <= feed.reads <= 3
     finally:
         for s in streams:
             s.close()

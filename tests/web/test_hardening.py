@@ -285,7 +285,8 @@ def _app(tmp_path: Path, name: str, data_dir: Path, robot: Any = None) -> Any:
     upgrade_head(settings.database_url)
     from tableteach.web.robots import make_recording_store
 
-    app = create_app(settings, context=Context.from_settings(settings, robot, make_recording_store(settings)))
+    context = Context.from_settings(settings, robot, lambda db: make_recording_store(settings, db))
+    app = create_app(settings, context=context)
     client = TestClient(app)
     client.ctx = app.state.context
     return client

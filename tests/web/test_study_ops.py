@@ -100,7 +100,7 @@ def test_erasure_removes_everything_keeps_an_audit_entry_and_is_idempotent(app_c
     assert app_client.get("/api/v1/me", headers=bearer(gone["token"])).status_code == 401
     audit = app_client.get(f"/api/v1/studies/{study}/erasures", headers=EXP).json()
     assert len(audit) == 1 and audit[0]["participant_id"] == gone["participant_id"]
-    assert audit[0]["erased_by"] == "experimenter" and audit[0]["reason"] == "erasure"
+    assert audit[0]["erased_by"] == "owner (server key)" and audit[0]["reason"] == "erasure"
     assert set(audit[0]) == {"participant_id", "erased_by", "reason", "pilot", "erased_at"}
     # The number is never given to someone else.
     assert join(app_client, study)[1]["participant_id"] > kept["participant_id"]

@@ -22,6 +22,8 @@ BAD_SPECS: list[dict[str, Any]] = [
      "questionnaire": [{"id": "a", "text": "?", "kind": "attention"}, {"id": "a", "text": "?", "kind": "likert5"}],
      "quiz": [{"id": "q", "text": "?", "options": ["a", ""], "correct": 1}]},
     {"tasks": "task1", "name": "x" * 300, "questionnaire": [{"id": "b c", "kind": "sometimes"}]},
+    {"tasks": [{"key": "task1"}], "allow_anonymous": None, "quiz_feedback": "yes", "consent_form": {"researcher": 5},
+     "questionnaire": [{"id": "a", "text": "?", "kind": "likert5", "anchors": [1, None]}]},
 ]
 PYTHON_WORDS = re.compile(r"\bNone\b|\bTrue\b|\bFalse\b|Input should|dict\b|\bstr\b|\bint\b|\[|\]")
 

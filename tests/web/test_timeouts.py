@@ -106,7 +106,7 @@ def test_helping_a_stuck_participant_on_moves_them_one_stage_and_is_logged(app_c
     state = app_client.get("/api/v1/me", headers=bearer(token)).json()
     assert state["stage"] == "done" and state["completion"]["code"]
     helped = [e for e in rows(app_client, study, "events") if e["kind"] == "helped_on"]
-    assert [e["payload"].count('"by":"experimenter"') for e in helped] == [1] * 5
+    assert [e["payload"].count('"by":"owner (server key)"') for e in helped] == [1] * 5
     r = app_client.post(url, headers=EXP)
     assert r.status_code == 409 and "done" in r.json()["detail"]
     assert app_client.post(f"/api/v1/studies/{study}/participants/999/help", headers=EXP).status_code == 404
