@@ -198,14 +198,15 @@ export class TopViewPlayer {
     this.frameId = requestAnimationFrame(step);
   }
 
-  /** Play recorded frames over `seconds` from the start (or show the end at once with `atEnd`). */
-  play(frames, seconds, { atEnd = false } = {}) {
+  /** Play recorded frames over `seconds` from `from` (a fraction of it; 0: the start), or show the end at once
+   * with `atEnd`. */
+  play(frames, seconds, { atEnd = false, from = 0 } = {}) {
     this.stop();
     this.frames = frames;
     const span = frames.at(-1)?.t || 0;
     this.duration = seconds > 0 ? seconds : span;
     this.rate = this.duration > 0 ? span / this.duration : 1;
-    this.position = atEnd ? this.duration : 0;
+    this.position = atEnd ? this.duration : Math.min(1, Math.max(0, from)) * this.duration;
     this.show(this.position);
     if (atEnd || this.duration <= 0) return;
     let last = null;

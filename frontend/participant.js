@@ -16,11 +16,13 @@ const HEARTBEAT_MS = 5000;
 const VIEWER_STALL_MS = 8000; // no 3D view connected for this long while one is shown: reload it
 const REDIRECT_SECONDS = 8;
 const PLAYBACK_POLL_MS = 250; // how often the page reads how far the 3D view has played the robot's attempt
-const NO_PLAYER_GRACE_MS = 15000;
+const NO_PLAYER_GRACE_MS = 15000; // no player ever came for the robot's attempt: the answer is not held back longer
+const PLAYER_RETRY_MS = 30000; // a player loading or gone quiet for this long is loaded again
+const PLAYER_GIVE_UP_MS = 120000; // and after this long the answer goes ahead (the shown fraction says how much)
 const IDLE_WARNING_SECONDS = 60; // "are you still there?" this long before the idle time-out
 const MODE_NOTE_MS = 12000; // how long the page says why it shows the 2D view
 const UNDER_WAY = ["consent", "instructions", "quiz", "task", "questionnaire"];
-const FORMS = ["quiz", "questionnaire"]; // finished, yet no player to read for this long: the answer is not held back
+const FORMS = ["quiz", "questionnaire"];
 
 const api = new ParticipantApi(tokenFromLocation());
 const tabId = randomId(12); // per page load: a reload frees the old lease on pagehide
@@ -58,12 +60,14 @@ let refreshing = null; // the refresh under way; a change notice meanwhile asks 
 let refreshAgain = false;
 // How much of the robot's attempt the 3D view has played (per step: task, kind, index): the answer waits for it.
 let idleReadAt = Date.now(); // when state.idle was read
-let shown = { step: null, playing: false, fraction: null, complete: true, unreadSince: null };
+let shown = { step: null, playing: false, fraction: null, complete: true, read: false, unreadSince: null,
+  retried: false };
 // 3D or 2D (participant-view-mode.js); the 2D view's picture and player, and what it shows now.
 const probe = mode.probeWebgl();
 let view = mode.initialMode(probe);
 let noteTimer = null;
-let top = { layout: null, picture: null, player: null, placed: null, motionKey: null, loading: false, retry: null };
+let top = { layout: null, picture: null, player: null, placed: null, motionKey: null, loading: false, retry: null,
+  waiting: false };
 
 function showBanner(text) {
   el.banner.textContent = text;
@@ -290,6 +294,7 @@ async function syncViewer() {
 function loadFrame() {
   if (view.mode !== "3d") return;
   viewer.noWatcherSince = Date.now();
+  viewer.frameLoaded = false;
   el.note.hidden = false;
   el.note.textContent = "Loading the 3D view…";
   el.frame.src = mode.viewerUrl(viewer.url, probe);
@@ -297,6 +302,7 @@ function loadFrame() {
 
 // The viewer page the server sends already hides viser's control panel and pop-up notices.
 el.frame.addEventListener("load", () => {
+  viewer.frameLoaded = true;
   if (viewer.url) el.note.hidden = true;
 });
 
@@ -364,6 +370,7 @@ async function syncTopView() {
       if (!answer.motion || !(Number(state.execution?.motion_seconds) > 0)) {
         // The robot is still working its motion out: ask again shortly.
         clearTimeout(top.retry);
+        top.waiting = true;
         if (!answer.motion) top.retry = setTimeout(() => syncTopView(), 700);
         top.player.still(restPoses(top.layout, []));
         top.placed = null;
@@ -371,13 +378,18 @@ async function syncTopView() {
       }
       top.motionKey = motionKey;
       top.placed = null;
-      top.player.play(motionFrames(answer.motion, top.layout), Number(state.execution.motion_seconds) || 0);
+      top.waiting = false;
+      // Switched to 2D part-way through the attempt: go on from where the 3D view had got to.
+      const from = shown.step === JSON.stringify([state.task.index, ex.kind, ex.index]) && !shown.complete
+        ? shown.fraction ?? 0 : 0;
+      top.player.play(motionFrames(answer.motion, top.layout), Number(state.execution.motion_seconds) || 0, { from });
       top.picture.describe(`The tables from above: the robot places ${ex.events.map((o) => `the ${o.replaceAll("_", " ")}`).join(", ")}`);
       return;
     }
   }
   if (motionKey) return; // the recording is playing or has played
   top.motionKey = null;
+  top.waiting = false;
   const placed = ["practice", "demonstration"].includes(state.step?.kind) ? state.demonstration?.placed ?? [] : [];
   const previous = top.placed;
   top.placed = [...placed];
@@ -451,59 +463,80 @@ async function refreshState() {
   setState(await api.state());
 }
 
-/** The seconds the view has played of the recorded attempt (the 2D player, or viser's hidden playback slider), or null. */
-function playbackSeconds() {
-  if (view.mode === "2d") return top.player?.frames ? top.player.position : null;
+/** How far the view has played the recorded attempt: {seconds} when a player can be read, else {loading: true}
+ * while one is on its way (the 3D player downloading its file, the 2D view fetching or waiting for the recording),
+ * else {} (no player: the view failed). */
+function playerReading() {
+  if (view.mode === "2d") {
+    if (top.player?.frames) return { seconds: top.player.position };
+    return top.loading || top.waiting ? { loading: true } : {};
+  }
   try {
-    const thumb = el.frame.contentDocument?.querySelector('.mantine-Slider-root [role="slider"]');
+    const doc = el.frame.contentDocument;
+    const thumb = doc?.querySelector('.mantine-Slider-root [role="slider"]');
     const seconds = thumb ? Number(thumb.getAttribute("aria-valuenow")) : NaN;
-    return Number.isFinite(seconds) ? seconds : null;
+    if (Number.isFinite(seconds)) return { seconds };
+    // viser shows a progress bar while it downloads the recording; before that the frame is still loading
+    const loading = !viewer.frameLoaded || Boolean(doc?.querySelector(".mantine-Progress-root"));
+    return loading ? { loading: true } : {};
   } catch {
-    return null; // the frame is between pages
+    return { loading: true }; // the frame is between pages
   }
 }
 
-/** Follow how much of the robot's attempt has been shown; the answer buttons unlock once it has played to the end. */
+/** A fresh record of how much of this step's attempt was shown. */
+function shownRecord(step, playing, motion) {
+  return { step, playing, fraction: playing && motion > 0 ? 0 : null, complete: !playing || motion <= 0,
+    read: false, unreadSince: null, retried: false };
+}
+
+/** Follow how much of the robot's attempt has been shown; the answer buttons unlock once it has played to the end.
+ *
+ * A player that was never there (the view failed) unlocks them after NO_PLAYER_GRACE_MS. One that is loading, or
+ * that was read and then went quiet (the frame reloading, a page stalled by software WebGL, the switch to 2D), holds
+ * them: it is reloaded after PLAYER_RETRY_MS and only after PLAYER_GIVE_UP_MS does the answer go ahead, the fraction
+ * sent with it saying how much was seen. */
 function watchPlayback() {
   const ex = state?.stage === "task" ? state.execution : null;
   if (!ex || ex.status === "not_started") return;
   const step = JSON.stringify([state.task.index, ex.kind, ex.index]);
   const motion = Number(ex.motion_seconds) || 0;
-  const playing = Boolean(viewer.url?.includes("playbackPath=")) && viewer.available !== false;
-  if (view.mode === "2d") {
-    // The 2D player plays the recording over the stored motion length: its fraction is what was shown.
-    if (shown.step !== step) shown = { step, playing: true, fraction: 0, complete: motion <= 0, unreadSince: null };
-    if (shown.complete && shown.fraction === 1) return;
-    const before = JSON.stringify(shown);
-    if (top.player?.frames && motion > 0) {
-      shown.unreadSince = null;
-      shown.fraction = Math.max(shown.fraction ?? 0, Math.min(1, top.player.fraction));
-      if (shown.fraction >= 0.995) { shown.fraction = 1; shown.complete = true; }
-    } else if (ex.status === "finished" && !shown.complete) {
-      shown.unreadSince ??= Date.now(); // no recording to play: allowed after the grace period, as in 3D
-      if (Date.now() - shown.unreadSince > NO_PLAYER_GRACE_MS) shown.complete = true;
-    }
-    if (JSON.stringify(shown) !== before) render();
-    return;
-  }
+  // The 2D player plays the recording over the stored motion length; the 3D one plays it from a file.
+  const playing = view.mode === "2d" || (Boolean(viewer.url?.includes("playbackPath=")) && viewer.available !== false);
   if (shown.step !== step || (playing && !shown.playing)) {
-    shown = { step, playing, fraction: playing && motion > 0 ? 0 : null, complete: !playing || motion <= 0,
-      unreadSince: null };
+    shown = shownRecord(step, playing, motion);
   }
   if (shown.complete && shown.fraction === 1) return;
   const before = JSON.stringify(shown);
-  const seconds = playing ? playbackSeconds() : null;
-  if (seconds !== null && motion > 0) {
+  const reading = playing ? playerReading() : {};
+  if (reading.seconds !== undefined && motion > 0) {
     shown.unreadSince = null;
-    shown.fraction = Math.max(shown.fraction ?? 0, Math.min(1, seconds / motion));
+    shown.read = true;
+    const fraction = view.mode === "2d" ? top.player.fraction : reading.seconds / motion;
+    shown.fraction = Math.max(shown.fraction ?? 0, Math.min(1, fraction ?? 0));
     if (shown.fraction >= 0.995) { shown.fraction = 1; shown.complete = true; }
   } else if (ex.status === "finished" && !shown.complete) {
-    // No player to read (the view failed to load): after a grace period the answer is allowed, and the
-    // fraction sent with it says how much was seen (null: unknown).
     shown.unreadSince ??= Date.now();
-    if (Date.now() - shown.unreadSince > NO_PLAYER_GRACE_MS) shown.complete = true;
+    const quiet = Date.now() - shown.unreadSince;
+    if (!shown.read && !reading.loading) {
+      if (quiet > NO_PLAYER_GRACE_MS) shown.complete = true;
+    } else if (quiet > PLAYER_GIVE_UP_MS) {
+      shown.complete = true;
+    } else if (quiet > PLAYER_RETRY_MS && !shown.retried) {
+      shown.retried = true;
+      reloadPlayer();
+    }
   }
-  if (JSON.stringify(shown) !== before) render();
+  if (JSON.stringify(shown) === before) return;
+  el.viewer.dataset.shownFraction = shown.fraction === null ? "" : shown.fraction.toFixed(3); // for tests and support
+  render();
+}
+
+/** Load the current player again (the 3D view's frame, or the 2D view's recording). */
+function reloadPlayer() {
+  if (view.mode === "3d") { loadFrame(); return; }
+  top.motionKey = null;
+  syncTopView();
 }
 
 /** The last screen (finished, or left early): `view(secondsLeft)` builds it; with a redirect address it counts
