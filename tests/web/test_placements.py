@@ -29,9 +29,12 @@ class GatedRobot(SlowRobot):
         self.release_plans.set()
         self.gate = threading.Event()
         self.gate.set()
+        self.at_gate = threading.Event()  # a placement is waiting at the closed gate
         self.order: list[str] = []
 
     def place(self, key: str, obj: str) -> Labels:
+        if not self.gate.is_set():
+            self.at_gate.set()
         assert self.gate.wait(60), "the test never opened the gate"
         time.sleep(0.01)  # long enough for a later placement to overtake this one if nothing kept the order
         self.order.append(obj)
@@ -132,6 +135,8 @@ def test_labels_whose_store_met_a_busy_database_are_stored_once_it_is_free(tmp_p
         robot.gate.clear()
         assert client.post("/api/v1/me/placements", json={"object": "fork"}, headers=bearer(token)).status_code == 200
         failures = client.ctx.runtime.failed_count
+        # The job has been claimed and is placing: holding the lock earlier would only keep it from being claimed.
+        assert robot.at_gate.wait(60), "the placement's job never reached the robot"
         holder = sqlite3.connect(tmp_path / "app.db", timeout=30)
         holder.execute("BEGIN IMMEDIATE")  # another process holds the write lock
         try:
