@@ -25,6 +25,15 @@ export class ApiError extends Error {
   }
 }
 
+const MAX_RETRY_WAIT_MS = 10000;
+
+/** How long to wait before retrying a busy answer: its Retry-After (seconds), else a doubling back-off. */
+function retryDelayMs(response, attempt) {
+  const asked = Number(response.headers.get("Retry-After"));
+  const fallback = 500 * 2 ** attempt;
+  return Math.min(MAX_RETRY_WAIT_MS, Number.isFinite(asked) && asked > 0 ? asked * 1000 : fallback);
+}
+
 export class ParticipantApi {
   constructor(token) {
     this.token = token;
@@ -55,6 +64,11 @@ export class ParticipantApi {
       }
       if (response.status === 204) return null;
       if (response.status === 304 && held) return held.data; // the same object: nothing changed
+      if ((response.status === 503 || response.status === 429) && attempt < retries) {
+        // Busy (a database lock, a limit): wait as long as the server asks, within reason, and try again.
+        await new Promise((resolve) => setTimeout(resolve, retryDelayMs(response, attempt)));
+        continue;
+      }
       const data = await response.json().catch(() => ({}));
       if (!response.ok) throw new ApiError(response.status, data.detail || response.statusText, data.state);
       const tag = response.headers.get("ETag");
