@@ -22,7 +22,7 @@ import numpy as np
 
 from .core.domain import DINNER_TASK_FORMULAS, get_domain
 from .core.metrics import similarity
-from .core.teachers import SimulatedTeacher
+from .core.teachers import DEFAULT_DEMO_MODE, SimulatedTeacher
 
 RETRIES = 4  # attempts per request: network errors, 503 (database busy) and 429 (too many wrong keys)
 MAX_WAIT = 30.0  # seconds: the longest Retry-After honoured before giving up
@@ -520,6 +520,7 @@ def session_timeout(state: dict[str, Any], given: float | None) -> float:
 
 
 def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: float = 0.0, seed: int = 0,
+                demo_mode: str = DEFAULT_DEMO_MODE,
                 prolific_pid: str | None = None, session_id: str | None = None, poll_seconds: float = 0.02,
                 timeout: float | None = None, knows: StudyKnowledge | None = None,
                 on_request: Callable[[str, float, int], None] | None = None,
@@ -527,14 +528,15 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
     """Complete a participant session as the simulated teacher (one ground truth per task, or one for all).
 
     knows: the quiz's and attention checks' answers (StudyKnowledge.of_study); ValueError before joining if the
-    study cannot be finished with what is known. timeout: seconds for the whole session (default: fitted to the
-    server's estimate, session_timeout). stop_after: leave after that many actions (to test resuming)."""
+    study cannot be finished with what is known. demo_mode: how the teacher demonstrates (core.teachers.DEMO_MODES).
+    timeout: seconds for the whole session (default: fitted to the server's estimate, session_timeout).
+    stop_after: leave after that many actions (to test resuming)."""
     knows = knows or StudyKnowledge()
     problem = cannot_finish(knows, ground_truths)
     if problem is not None:
         raise ValueError(f"not joining: {problem}")
     domain = get_domain("dinner")
-    teachers = [SimulatedTeacher(domain, truth_mask(g), noise) for g in ground_truths]
+    teachers = [SimulatedTeacher(domain, truth_mask(g), noise, demo_mode) for g in ground_truths]
     rng = np.random.default_rng(seed)
     run = TeacherRun()
     counted = on_request

@@ -5,13 +5,11 @@ truth and the first demonstrations) gives each run's paired difference of final 
 sample size n, many studies of n participants are drawn from the pool with replacement, and each is
 tested with a two-sided sign-flip permutation test of the mean paired difference at level alpha; the
 power is the share of studies that reject "no difference". The teacher model is given (demonstration
-mode, flip rate) or fitted from a pilot's export (the share of its query verdicts that contradict the
-task's ground truth becomes the flip rate).
+mode, flip rate) or fitted from a pilot's export (experiments/pilot_teacher.py).
 """
 
 from __future__ import annotations
 
-import json
 import sys
 import textwrap
 from pathlib import Path
@@ -20,8 +18,6 @@ from typing import Any, Sequence
 import numpy as np
 from tqdm import tqdm
 
-from ..core.domain import get_domain
-from .replay import read_export, sessions
 from .settings import ExperimentSettings
 from .summary import final_values
 
@@ -42,29 +38,6 @@ def parse_sizes(text: str) -> tuple[int, ...]:
     if not sizes or sizes[0] < 2:
         raise ValueError(f"--participants {text!r}: a study needs at least 2 participants")
     return tuple(sizes)
-
-
-def fitted_flip_rate(export_path: Path | str) -> tuple[float, int]:
-    """(flip rate, verdicts): the share of a pilot's query verdicts that contradict the task's ground truth."""
-    export = read_export(export_path)
-    space = get_domain("dinner").clause_space
-    wrong = total = 0
-    for (_, task_index), rows in sessions(export).items():
-        truth_text = export.study["tasks"][task_index].get("ground_truth")
-        if truth_text is None:
-            continue
-        truth = space.mask_of_formula(truth_text)
-        for row in rows:
-            if row["record_kind"] != "query":
-                continue
-            trace = [frozenset(s) for s in json.loads(row["trace"])]
-            correct = (truth & ~space.sat_mask(trace)) == 0
-            total += 1
-            wrong += int((row["acceptable"] in ("True", "true", "1")) != correct)
-    if total == 0:
-        raise ValueError(f"{export_path} has no query verdicts on a task with a ground truth; a pilot with Active "
-                         "or Random participants is needed to fit the flip rate")
-    return min(wrong / total, 0.49), total
 
 
 def pool_differences(rows: Sequence[dict[str, str]], settings: ExperimentSettings, contrast: str) -> np.ndarray:

@@ -8,7 +8,8 @@ from typing import Any
 
 from ..core.belief import check_flip_rate
 from ..core.teachers import DEFAULT_DEMO_MODE, DEMO_MODES
-from .power import CONTRASTS, POWER_COLUMNS, fitted_flip_rate, parse_sizes, plot_power, pool_differences, power_table
+from .pilot_teacher import fitted_demo_mode, fitted_flip_rate
+from .power import CONTRASTS, POWER_COLUMNS, parse_sizes, plot_power, pool_differences, power_table
 from .settings import DOMAINS, ExperimentSettings, resolve_truth_sampler
 from .summary import write_csv
 
@@ -16,7 +17,7 @@ DESCRIPTION = """Power from simulation: a pool of --runs simulated participants 
 gives each one's paired difference; for each --participants size, --studies simulated studies are drawn
 from it and tested (two-sided sign-flip permutation test of the mean difference, alpha 0.05). Writes
 power.csv and power.png/.svg into --out. The teacher: --demo-mode and --flip-rate, or --pilot EXPORT
-(the flip rate fitted from a pilot's exports.zip)."""
+(the flip rate and the demonstration mode fitted from a pilot's exports.zip; a --demo-mode given beside it wins)."""
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -31,7 +32,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
                    help="the task (default dinner-task1, the paper's user study's Task 1)")
     p.add_argument("--n-query", type=int, default=3, help="queries (Batch: extra demonstrations) (default 3)")
     p.add_argument("--prior", default="chains-2020", help="the learner's prior (default chains-2020, the study's)")
-    p.add_argument("--demo-mode", choices=list(DEMO_MODES), default=DEFAULT_DEMO_MODE)
+    p.add_argument("--demo-mode", choices=list(DEMO_MODES), default=None,
+                   help=f"how the simulated teacher demonstrates (default {DEFAULT_DEMO_MODE}, or fitted with --pilot)")
     p.add_argument("--flip-rate", type=float, default=None,
                    help="the teacher's verdict-flip probability, [0, 0.5) (default 0: a perfect teacher)")
     p.add_argument("--pilot", metavar="EXPORT", default=None,
@@ -57,22 +59,26 @@ def cmd_power(args: argparse.Namespace) -> dict[str, Any]:
         raise ValueError(f"--alpha must lie in (0, 1), got {args.alpha}")
     if args.studies < 10:
         raise ValueError(f"--studies must be at least 10, got {args.studies}")
-    flip, fitted_from = args.flip_rate or 0.0, None
+    flip, demo_mode, fitted_from = args.flip_rate or 0.0, args.demo_mode or DEFAULT_DEMO_MODE, None
     if args.pilot is not None:
         flip, verdicts = fitted_flip_rate(args.pilot)
-        fitted_from = {"pilot": Path(args.pilot).name, "query_verdicts": verdicts}
+        fit = fitted_demo_mode(args.pilot)
+        fitted_from = {"pilot": Path(args.pilot).name, "query_verdicts": verdicts,
+                       "demonstrations": fit.demonstrations, "demo_mode_log_likelihood": fit.log_likelihood}
+        demo_mode = args.demo_mode or fit.mode
     settings = ExperimentSettings(domain=args.domain, runs=args.runs, n_query=(args.n_query,), seed=args.seed,
                                   prior=args.prior, truth_sampler=resolve_truth_sampler(args.domain, None),
-                                  demo_mode=args.demo_mode, noise=flip)
+                                  demo_mode=demo_mode, noise=flip)
     out = Path(args.out)
     result = run_sweep(settings, out / "pool", workers=args.workers, progress=not args.no_progress, figures=False)
     _, rows = read_sweep(out / "pool")
     diffs = pool_differences(rows, settings, args.contrast)
     table = [{"contrast": args.contrast, **r, "pool_runs": int(diffs.size), "teacher_flip_rate": flip,
-              "demo_mode": args.demo_mode, "domain": args.domain, "n_query": args.n_query}
+              "demo_mode": demo_mode, "domain": args.domain, "n_query": args.n_query}
              for r in power_table(diffs, sizes, args.studies, args.alpha, args.seed, not args.no_progress)]
     write_csv(out / "power.csv", table, POWER_COLUMNS)
-    plot_power(table, f"{args.contrast} on {args.domain}, {args.n_query} queries, teacher {args.demo_mode}, flip "
+    plot_power(table, f"{args.contrast} on {args.domain}, {args.n_query} queries, teacher {demo_mode}, flip "
                       f"{flip:.3g}; pool of {diffs.size} simulated participants", out / "power")
     return {"out": str(out), "pool_runs": result.runs_total, "teacher_flip_rate": round(flip, 4),
-            "fitted_from": fitted_from, "power": {str(r["participants"]): r["power"] for r in table}}
+            "demo_mode": demo_mode, "fitted_from": fitted_from,
+            "power": {str(r["participants"]): r["power"] for r in table}}

@@ -8,6 +8,7 @@ import sys
 from typing import Any
 
 from ..config import Settings
+from ..core.teachers import DEFAULT_DEMO_MODE, DEMO_MODES
 
 
 def _settings(args: argparse.Namespace) -> Settings:
@@ -152,6 +153,7 @@ def cmd_teach(args: argparse.Namespace) -> dict:
                                                 attention_fail_rate=args.attention_fail_rate)
         knows.quiz_answers.update(_quiz_answers(args.quiz_answers))
         run = run_teacher(args.server, args.study, args.ground_truth, noise=args.noise, seed=args.seed,
+                          demo_mode=args.demo_mode,
                           prolific_pid=args.prolific_pid, session_id=args.session_id, knows=knows,
                           timeout=args.session_timeout)
     except ApiError as exc:
@@ -261,6 +263,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     teach.add_argument("--ground-truth", required=True, action="append",
                        help="the teacher's formula, or task1 / task2; repeat once per task of the study")
     teach.add_argument("--noise", type=float, default=0.0, help="probability of a flipped verdict (default 0)")
+    teach.add_argument("--demo-mode", choices=list(DEMO_MODES), default=DEFAULT_DEMO_MODE,
+                       help=f"how the teacher demonstrates (default {DEFAULT_DEMO_MODE}, the authors' demonstrator)")
     teach.add_argument("--seed", type=int, default=0, help="the teacher's random seed")
     teach.add_argument("--prolific-pid", help="external participant id")
     teach.add_argument("--session-id", help="external session id (a rerun with the same --prolific-pid and "
