@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import csv
 import io
+from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -13,7 +15,7 @@ from tableteach.client import ExperimenterClient
 from tests.waiting import wait_until
 from tests.web.conftest import EXPERIMENTER_TOKEN, open_study, study_spec
 
-from conftest import TIMEOUT_MS
+from conftest import TIMEOUT_MS, LiveServer
 
 pytestmark = pytest.mark.browser
 
@@ -27,8 +29,20 @@ def _assessment(url: str, study_id: str) -> dict[str, str] | None:
     return next((e for e in events if e["kind"] == "assessment"), None)
 
 
-def test_a_player_that_goes_quiet_part_way_holds_the_answer_and_is_loaded_again(browser_page, slow_mujoco_server):
-    mujoco_server = slow_mujoco_server  # the robot at 2x: the attempt plays long enough to interrupt it part-way
+@pytest.fixture
+def real_time_mujoco_server(tmp_path: Path) -> Iterator[LiveServer]:
+    """The app with the MuJoCo robot at real speed: its attempt plays long enough to be interrupted part-way even
+    when a loaded machine holds the page up for seconds."""
+    server = LiveServer(tmp_path, robot="mujoco", robot_speed=1.0).start()
+    try:
+        yield server
+    finally:
+        server.stop()
+
+
+def test_a_player_that_goes_quiet_part_way_holds_the_answer_and_is_loaded_again(browser_page,
+                                                                                 real_time_mujoco_server):
+    mujoco_server = real_time_mujoco_server
     page = browser_page  # the 3D view, chosen
     spec = study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=1, n_tests=0)
     study_id = open_study(mujoco_server.url, spec)
@@ -52,10 +66,12 @@ def test_a_player_that_goes_quiet_part_way_holds_the_answer_and_is_loaded_again(
     playback = page.locator("#viewer-frame").get_attribute("src")
     assert "playbackPath=" in playback
     # The player goes quiet part-way: nothing in the frame can say how far it got.
-    page.evaluate("() => { document.getElementById('viewer-frame').src = 'about:blank'; }")
+    shown = page.evaluate("() => { document.getElementById('viewer-frame').src = 'about:blank';"
+                          " return Number(document.getElementById('viewer').dataset.shownFraction); }")
+    assert 0 < shown < 1, f"the attempt was {shown:.0%} shown when its player was emptied: expected part of it"
     # The page loads the player again (the same recording, from the start) rather than giving up on it ...
     page.wait_for_function("(src) => document.getElementById('viewer-frame').getAttribute('src') === src",
-                           arg=playback, timeout=TIMEOUT_MS)
+                           arg=playback, timeout=2 * TIMEOUT_MS)
     assert page.locator("#acceptable").is_disabled()
     # ... and the answer waits until that player has shown the attempt to its end.
     page.wait_for_selector("#acceptable:not([disabled])", timeout=2 * TIMEOUT_MS)
