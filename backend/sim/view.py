@@ -4,6 +4,7 @@ changed body poses pushed per frame (BodyMirror); SceneView is a whole scene on 
 from __future__ import annotations
 
 import threading
+from functools import lru_cache
 from typing import Any
 from collections.abc import Callable, Iterable, Sequence
 
@@ -20,10 +21,12 @@ OBJECT_LABEL_HEIGHT = 0.02  # m above an object's centre; the label hangs below 
 CAPTION_NODE = "/caption"  # the scene node of the one-line status (recordings change its text)
 
 
+@lru_cache(maxsize=64)
 def capsule_mesh(
     radius: float, half_length: float, segments: int = 20, rings: int = 6
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Vertices and faces of a z-aligned capsule (viser has no capsule primitive)."""
+    """Vertices and faces of a z-aligned capsule (viser has no capsule primitive); read-only, made once per shape
+    because every browser's own scene holds the arm's capsules."""
     angles = np.linspace(0.0, np.pi / 2, rings + 1)
     upper = [(radius * np.cos(a), half_length + radius * np.sin(a)) for a in angles]
     profile = [(r, -z) for r, z in reversed(upper)] + upper
@@ -37,7 +40,9 @@ def capsule_mesh(
             a, b = i * segments + k, i * segments + (k + 1) % segments
             c, d = b + segments, a + segments
             faces += [(a, b, c), (a, c, d)]
-    return np.asarray(vertices, dtype=np.float32), np.asarray(faces, dtype=np.uint32)
+    vertex_array, face_array = np.asarray(vertices, dtype=np.float32), np.asarray(faces, dtype=np.uint32)
+    vertex_array.flags.writeable = face_array.flags.writeable = False
+    return vertex_array, face_array
 
 
 def _rgb(model: mujoco.MjModel, geom: int) -> tuple[tuple[int, int, int], float]:

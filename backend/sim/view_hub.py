@@ -8,6 +8,11 @@ names the table. viser 1.1 gives a connection's request path only through its we
 connections (`_live_connections`, a private attribute): `ticket_of` is the one place that reads it, and
 tests/sim/test_view_hub.py fails if a viser upgrade changes it (viser is pinned in constraints.txt).
 
+viser 1.1 also gives each client two zstd compressors (one per message producer, about 250 KiB of context each:
+two thirds of what an idle view cost). Every producer runs on the server's one event loop and compresses in one
+synchronous call, so `share_message_compressors` makes them share one compressor per thread and level; the same
+test fails if viser stops making them the way this expects.
+
 Clicks arrive on viser's threads; the hub hands them to `on_click(key, obj)`, which must only queue them.
 """
 
@@ -19,6 +24,7 @@ import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import mujoco
 import numpy as np
@@ -52,6 +58,37 @@ def ticket_of(server: viser.ViserServer, client_id: int) -> str | None:
     return path.strip("/").partition("?")[0] or None
 
 
+class SharedCompressors:
+    """Stands in for the zstandard module inside viser's connection code: ZstdCompressor(level=L) gives one
+    compressor per thread and level; everything else is the module's own."""
+
+    def __init__(self, module: Any) -> None:
+        self.module = module
+        self._local = threading.local()
+        self.made = 0  # compressors made (one per thread and level that asked)
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.module, name)
+
+    def ZstdCompressor(self, level: int = 3, **options: Any) -> Any:  # noqa: N802 (the module's own name)
+        """The thread's compressor of this level (a fresh one when given other options)."""
+        if options:
+            return self.module.ZstdCompressor(level=level, **options)
+        cache: dict[int, Any] = self._local.__dict__.setdefault("compressors", {})
+        if level not in cache:
+            cache[level] = self.module.ZstdCompressor(level=level)
+            self.made += 1
+        return cache[level]
+
+
+def share_message_compressors() -> None:
+    """Make viser's per-client message producers share their zstd compressors (see the module's docstring)."""
+    from viser.infra import _infra
+
+    if not isinstance(_infra.zstandard, SharedCompressors):
+        setattr(_infra, "zstandard", SharedCompressors(_infra.zstandard))  # noqa: B010 (a module attribute)
+
+
 class ViewHub:
     """The process's viser server; tables are keyed by the robot's key. Thread-safe."""
 
@@ -67,6 +104,7 @@ class ViewHub:
         self._tickets: dict[str, tuple[str, float]] = {}
         self._views: dict[int, ClientView] = {}
         self._server: viser.ViserServer | None = None
+        self._rest: mujoco.MjData | None = None
 
     @property
     def started(self) -> bool:
@@ -143,12 +181,14 @@ class ViewHub:
         with self._lock:
             if self._server is not None:
                 return self._server
+            share_message_compressors()
             server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
             server.gui.configure_theme(show_logo=False, show_share_button=False)
             server.gui.main_panel.minimize()
             initial_camera(server, self._model)
             data = mujoco.MjData(self._model)
             mujoco.mj_forward(self._model, data)
+            self._rest = data  # every new view's bodies start here (read only)
             static = [self._model.body(b).name for b in range(self._model.nbody)
                       if self._model.body(b).name not in self._moving]
             BodyMirror(server.scene, self._model, data, static)
@@ -172,10 +212,11 @@ class ViewHub:
         if shown is None:
             return
         bodies, poses, caption_text, clickable = shown
-        data = mujoco.MjData(self._model)
-        mujoco.mj_forward(self._model, data)
+        rest = self._rest
+        if rest is None:  # the server stopped meanwhile
+            return
         with client.atomic():
-            mirror = BodyMirror(client.scene, self._model, data, self._moving)
+            mirror = BodyMirror(client.scene, self._model, rest, self._moving)
             mirror.set_poses(bodies, poses)
             caption = add_caption(client.scene)
             caption.text, caption.visible = caption_text, bool(caption_text)
