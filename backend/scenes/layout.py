@@ -95,14 +95,8 @@ def _candidates() -> tuple[tuple[float, float], ...]:
 
 
 def scene_problems(spec: SceneSpec) -> Iterator[tuple[str, str]]:
-    """(field, message) for everything wrong with a scene whose fields are each valid: names used twice, slots that
-    do not work, objects that do not fit on Table A."""
-    seen: dict[str, int] = {}
-    for i, o in enumerate(spec.objects):
-        if o.name in seen:
-            yield f"objects.{i}.name", (f"{o.name!r} is already the name of object {seen[o.name] + 1}; each object "
-                                        "needs its own name")
-        seen.setdefault(o.name, i)
+    """(field, message) for everything wrong with a scene of distinct, valid objects: slots that do not work,
+    objects that do not fit on Table A."""
     bad_slots = list(slot_problems(spec))
     for i, message in bad_slots:
         yield f"objects.{i}.slot", message

@@ -32,14 +32,15 @@ def joint_problem(x: float, y: float, z: float) -> str | None:
     if cos_elbow < -1.0:
         return "too close to the robot's base"
     if cos_elbow > 1.0:
-        return f"{u:.2f} m from the robot's base, beyond the arm's reach of about {reach_radius(z):.2f} m there"
+        return (f"{u * 100:.1f} cm from the robot's base, and the arm reaches at most {reach_radius(z) * 100:.1f} cm "
+                "out at the height it carries it")
     elbow = math.acos(cos_elbow)
     shoulder = math.atan2(u, v) - math.atan2(FORE * math.sin(elbow), UPPER + FORE * math.cos(elbow))
     angles = {"shoulder": shoulder, "elbow": elbow, "wrist_pitch": math.pi - shoulder - elbow}
     for joint, angle in angles.items():
         low, high = RANGES[joint]
         if not low + MARGIN <= angle <= high - MARGIN:
-            where = "too close to the robot's base" if u < 0.4 else f"{u:.2f} m from the robot's base, too far"
+            where = "too close to the robot's base" if u < 0.4 else f"{u * 100:.1f} cm from the robot's base, too far"
             return f"{where} (the {joint.replace('_', ' ')} would have to turn past its limit)"
     return None
 

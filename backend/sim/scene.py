@@ -150,6 +150,11 @@ def _load(path: str) -> tuple[mujoco.MjModel, Layout]:
     return model, read_layout(model)
 
 
+def scene_layout(path: Path | str = SCENE_XML) -> Layout:
+    """The scene's layout (shared, read-only), without a copy of its model."""
+    return _load(str(path))[1]
+
+
 def load_scene(path: Path = SCENE_XML) -> tuple[mujoco.MjModel, Layout]:
     """A private copy of the scene's model (the grasp weld lives in it) and the shared layout."""
     model, layout = _load(str(path))

@@ -56,10 +56,11 @@ class ViewHub:
     """The process's viser server; tables are keyed by the robot's key. Thread-safe."""
 
     def __init__(self, model: mujoco.MjModel, *,
-                 on_join: Callable[[str], tuple[Sequence[str], np.ndarray, str, frozenset[str]] | None],
+                 on_join: Callable[[str], tuple[Sequence[str], np.ndarray, str, frozenset[str], mujoco.MjModel] | None],
                  on_click: Callable[[str, str], None], on_leave: Callable[[str], None]) -> None:
         self._model = model
-        self._on_join = on_join  # key -> (bodies, poses, caption, clickable objects) for a new client, or None
+        # key -> (bodies, poses, caption, clickable objects, the table's model) for a new client, or None
+        self._on_join = on_join
         self._on_click = on_click
         self._on_leave = on_leave
         self._moving = moving_bodies(model)
@@ -171,11 +172,13 @@ class ViewHub:
         shown = self._on_join(key)
         if shown is None:
             return
-        bodies, poses, caption_text, clickable = shown
-        data = mujoco.MjData(self._model)
-        mujoco.mj_forward(self._model, data)
+        # The shared scene holds what every table has (tables, the robot's pedestal); the client's own scene the
+        # moving bodies of its table's model (the dinner objects, or the study's own).
+        bodies, poses, caption_text, clickable, model = shown
+        data = mujoco.MjData(model)
+        mujoco.mj_forward(model, data)
         with client.atomic():
-            mirror = BodyMirror(client.scene, self._model, data, self._moving)
+            mirror = BodyMirror(client.scene, model, data, moving_bodies(model))
             mirror.set_poses(bodies, poses)
             caption = add_caption(client.scene)
             caption.text, caption.visible = caption_text, bool(caption_text)
