@@ -17,7 +17,7 @@ LUNCH_TRUTH = "F(lunch_box) & F(napkin) & F(spoon) & (!napkin U lunch_box) & G(!
 EIGHT_OBJECTS: list[dict[str, Any]] = [
     *LUNCH_OBJECTS[:4],
     {"name": "mug", "shape": "cup", "colour": "#2e86c1", "size": 8, "slot": {"x": 13, "y": 10}},
-    {"name": "fork", "shape": "utensil", "colour": "#7f8c8d", "size": 18, "slot": {"x": 20, "y": 3}},
+    {"name": "fork", "shape": "utensil", "colour": "#7f8c8d", "size": 18, "slot": {"x": 20, "y": 7}},
     {"name": "bowl", "shape": "bowl", "colour": "#3355ff", "size": 12, "slot": {"x": -5, "y": -12}},
     {"name": "glass", "shape": "glass", "colour": "#aed6f1", "size": 6, "slot": {"x": -1, "y": 15}},
 ]

@@ -281,7 +281,7 @@ def _object_names(spec: dict[str, Any]) -> tuple[str, ...] | None:
     objects = spec.get("objects")
     if not isinstance(objects, list) or not objects:
         return None
-    names = tuple(o.get("name") for o in objects if isinstance(o, dict))
+    names = tuple(o.get("name") for o in objects if isinstance(o, dict) and isinstance(o.get("name"), str))
     if len(names) != len(objects) or len(set(names)) != len(names) or not MIN_OBJECTS <= len(names) <= MAX_OBJECTS \
             or not all(isinstance(n, str) and name_problem(n) is None for n in names):
         return None
@@ -356,7 +356,8 @@ def _object_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
         if isinstance(name, str) and re.match(NAME_PATTERN, name) and name_problem(name):
             yield f"objects.{i}.name", name_problem(name) or ""
             valid = False
-        if shape in SIZE_RANGES and isinstance(size, (int, float)) and not isinstance(size, bool):
+        if isinstance(shape, str) and shape in SIZE_RANGES and isinstance(size, (int, float)) \
+                and not isinstance(size, bool):
             low, high = SIZE_RANGES[shape]
             if not low <= size <= high:
                 yield f"objects.{i}.size", (f"a {shape}'s {SIZE_MEANING[shape]} must be {low:g} to {high:g} cm, "

@@ -68,7 +68,7 @@ def place_object(ctx: Context, token: str, *, obj: str, expect: Expect, key: str
         ts, _state_, step = _teaching(a, expect, ("practice", "demonstration"))
         objects = study_objects(a.study)
         if obj not in objects:
-            raise InvalidInput(f"unknown object {obj!r}; expected one of {', '.join(objects)}")
+            raise InvalidInput(f"object: {obj!r} is not an object of this study; expected one of {', '.join(objects)}")
         if obj in ts.demo_placed:
             raise Conflict(f"the {obj} is already on the table; a placed object cannot be placed again")
         try:

@@ -186,6 +186,14 @@ class ProgressOut(BaseModel):
     seconds_left: float | None = Field(None, description="the calibrated estimate of the time left, in seconds")
 
 
+class OwnObjectOut(BaseModel):
+    """One of the study's own objects as the page shows it."""
+
+    name: str
+    shape: str
+    colour: str = Field(description="#rrggbb")
+
+
 class ParticipantState(BaseModel):
     """What a participant sees; every participant action answers with it."""
 
@@ -195,6 +203,8 @@ class ParticipantState(BaseModel):
     stage: Literal["consent", "instructions", "quiz", "task", "questionnaire", "done", "withdrawn", "screened_out"]
     n_events: int
     objects: list[str]
+    own_objects: list[OwnObjectOut] | None = Field(None, description="a study with its own objects: each one's shape "
+                                                   "and colour (empty: the dinner table)")
     consent: ConsentOut
     task: StateTaskOut | None = Field(description="at the task stage")
     step: StateStepOut | None = Field(description="at the task stage")
