@@ -210,3 +210,29 @@ def test_a_participant_teaches_a_study_with_its_own_objects_and_the_exports_carr
     assert beliefs and all(b["similarity"] for b in beliefs)
     history = app_client.get(f"/api/v1/studies/{study_id}/participants/1/belief", headers=EXP)
     assert history.status_code == 200 and "lunch box" in history.text
+
+
+def test_tableteach_teach_teaches_a_study_with_its_own_objects_and_refuses_a_formula_over_others(
+        shared_server: Any) -> None:
+    import subprocess
+    import sys
+
+    from .conftest import EXPERIMENTER_TOKEN, open_study
+
+    study = open_study(shared_server.url, lunch_study())
+    command = [sys.executable, "-m", "tableteach.cli", "teach", "--server", shared_server.url, "--study", study]
+    done = subprocess.run([*command, "--ground-truth", LUNCH_TRUTH, "--token", EXPERIMENTER_TOKEN, "--seed", "4"],
+                          capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    summary = json.loads(done.stdout)
+    assert summary["completion_code"] and summary["final"][0]["similarity"] > 0
+    robot = {obj for execution in summary["executions"] for obj in execution["events"]}
+    assert robot <= set(NAMES) and summary["final"][0]["map_formula"]
+    refused = subprocess.run([*command, "--ground-truth", "task1", "--token", EXPERIMENTER_TOKEN],
+                             capture_output=True, text=True, timeout=300)
+    assert refused.returncode == 2 and "Traceback" not in refused.stderr
+    assert "--ground-truth 'task1'" in refused.stderr and "lunch_box" in refused.stderr
+    without_token = subprocess.run([*command, "--ground-truth", "F(bowl)"], capture_output=True, text=True,
+                                   timeout=300)
+    assert without_token.returncode == 2 and "the study's objects are lunch_box, apple, napkin, spoon, mug" in (
+        without_token.stderr)
