@@ -88,8 +88,8 @@ export function tablePicture(layout, { onPick = null } = {}) {
 
   const shapes = {};
   // The dinner objects in their stacking order; a study's own objects in theirs (they never share a place).
-  const names = [...STACK.filter((n) => n in layout.objects), ...Object.keys(layout.objects).filter((n) => !STACK.includes(n))];
-  for (const name of names) {
+  const drawn = [...STACK.filter((n) => n in layout.objects), ...Object.keys(layout.objects).filter((n) => !STACK.includes(n))];
+  for (const name of drawn) {
     const o = layout.objects[name];
     const g = svg("g", { class: `object object-${name}`, "data-object": name });
     const fill = o.colour || COLORS[name];
