@@ -164,7 +164,7 @@ function demonstrationPanel(state, live, { onPlace, onFinish, onConfirmFinish, o
   const status = moving
     ? (caption ? `${caption}. Please wait until it has finished.` : "The robot is busy. Please wait.")
     : waiting.length
-      ? `Click the next object ${live.view === false ? "below" : live.mode === "2d" ? "in the 2D view" : "in the 3D view"}, or finish if the table is set.`
+      ? `Click the next object ${live.view === false ? "below" : live.mode === "2d" ? "in the 2D view" : "in the 3D view"}, or finish ${state.own_objects ? "when the task is done" : "if the table is set"}.`
       : "All objects are on Table B. Press the finish button.";
   const finishLabel = practice ? "Finish practice" : "Finish demonstration";
   return h("div", {},
