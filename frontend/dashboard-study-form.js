@@ -114,8 +114,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
   const addObject = (o = { name: "", shape: "plate", colour: "#3366cc", size: null, slot: { x: 0, y: 0 } }) => {
     const i = objects.children.length;
     const shape = select("object_shape", choices.shapes, o.shape);
-    shape.setAttribute("aria-label", `Object ${i + 1}: shape`);
-    shape.dataset.field = `objects.${i}.shape`;
+    shape.removeAttribute("id"); // one per row: the label around it names it
     const size = h("input", { type: "number", name: "object_size", step: 0.5, value: o.size ?? "", size: 4 });
     const sizeHint = () => {
       const [low, high] = choices.sizes[shape.value] ?? [];
@@ -126,7 +125,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
     sizeHint();
     objects.append(h("div", { class: "row object-row" },
       field("Name", h("input", { name: "object_name", value: o.name, placeholder: "e.g. lunch_box", size: 12 }), `objects.${i}.name`),
-      shape,
+      field("Shape", shape, `objects.${i}.shape`),
       field("Colour", h("input", { type: "color", name: "object_colour", value: o.colour }), `objects.${i}.colour`),
       field("Size (cm across or long)", size, `objects.${i}.size`),
       field("Place: cm right", h("input", { type: "number", name: "object_x", min: -24, max: 24, step: 0.5, value: o.slot.x, size: 4 }), `objects.${i}.slot`),
