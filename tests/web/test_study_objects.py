@@ -236,3 +236,19 @@ def test_tableteach_teach_teaches_a_study_with_its_own_objects_and_refuses_a_for
                                    timeout=300)
     assert without_token.returncode == 2 and "the study's objects are lunch_box, apple, napkin, spoon, mug" in (
         without_token.stderr)
+
+
+def test_tableteach_replay_reproduces_the_beliefs_of_a_study_with_its_own_objects(app_client: Any, tmp_path: Any,
+                                                                                   capsys: Any) -> None:
+    from tableteach.cli import main
+
+    study_id = _created(app_client, lunch_study())
+    _teach(app_client, study_id)
+    archive = tmp_path / "exports.zip"
+    archive.write_bytes(app_client.get(f"/api/v1/studies/{study_id}/exports/exports.zip", headers=EXP).content)
+    code = main(["replay", str(archive), "--learner", "study", "--out", str(tmp_path / "replay"), "--no-progress"])
+    assert code == 0, capsys.readouterr().err
+    with open(tmp_path / "replay" / "replay.csv", newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert rows and all(r["map_formula"] == r["study_map_formula"] for r in rows)
+    assert all(abs(float(r["similarity"]) - float(r["study_similarity"])) < 1e-9 for r in rows)
