@@ -186,14 +186,13 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         "stage": participant.stage,
         "n_events": participant.n_events,
         "objects": list(study_objects(study)),
-        # A study with its own objects: how each looks (the page words its text for them, not for a dinner table).
-        "own_objects": None if not study.objects else [{k: o[k] for k in ("name", "shape", "colour")}
-                                                       for o in study.objects],
         "consent": {"text": study.consent_text, "version": study.consent_version,
                     "given_at": iso(participant.consent_at)},
         "task": None, "step": None, "demonstration": None, "execution": None,
         "questionnaire": None, "completion": None, "quiz": None, "replayed": replayed,
     }
+    if study.objects:  # a study with its own objects: how each looks (the page words its text for any task)
+        out["own_objects"] = [{k: o[k] for k in ("name", "shape", "colour")} for o in study.objects]
     if participant.stage == "task":
         ts = current_task(s, participant)
         task = study.tasks[participant.task_index]

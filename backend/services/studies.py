@@ -157,7 +157,8 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "task_order": study.task_order, "quiz": study.quiz,
         "quiz_max_attempts": study.quiz_max_attempts, "timeout_minutes": study.timeout_minutes,
         "robot_speed": study.robot_speed, "flip_rate": float(study.flip_rate or 0.0),
-        "places": study.places, "archived_at": iso(study.archived_at), "objects": study.objects,
+        "places": study.places, "archived_at": iso(study.archived_at),
+        **({"objects": study.objects} if study.objects else {}),  # the dinner table's studies read as before
         **page_settings_view(study),
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }
