@@ -11,7 +11,7 @@ import io
 import time
 import uuid
 import zipfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Self
@@ -20,7 +20,7 @@ from urllib.parse import quote
 import httpx
 import numpy as np
 
-from .core.domain import DINNER_TASK_FORMULAS, get_domain
+from .core.domain import DINNER_OBJECTS, DINNER_TASK_FORMULAS, get_domain, objects_task
 from .core.metrics import similarity
 from .core.teachers import DEFAULT_DEMO_MODE, SimulatedTeacher
 
@@ -429,9 +429,16 @@ class ExperimenterClient(_Base):
 # ---------------------------------------------------------------------- scripted teacher
 
 
-def truth_mask(formula: str) -> int:
-    """The clause mask of a ground truth given as a formula or as task1 / task2."""
-    return get_domain("dinner").clause_space.mask_of_formula(DINNER_TASK_FORMULAS.get(formula, formula))
+def truth_mask(formula: str, task: str = "dinner") -> int:
+    """The clause mask of a ground truth given as a formula (over the task's objects) or, on the dinner table, as
+    task1 / task2; ValueError names what is wrong."""
+    named = DINNER_TASK_FORMULAS.get(formula) if task == "dinner" else None
+    return get_domain(task).clause_space.mask_of_formula(named or formula)
+
+
+def task_of(objects: Sequence[str] | None) -> str:
+    """The learner's task of a study whose objects are these (None or the dinner objects: the dinner table)."""
+    return "dinner" if not objects or tuple(objects) == DINNER_OBJECTS else objects_task(tuple(objects))
 
 
 @dataclass
@@ -469,6 +476,7 @@ class StudyKnowledge:
     attention_fail_rate: float = 0.0
     n_tasks: int | None = None
     has_quiz: bool | None = None
+    objects: tuple[str, ...] | None = None  # a study with its own objects: their names
 
     @classmethod
     def of_study(cls, spec: dict[str, Any], *, attention_fail_rate: float = 0.0) -> StudyKnowledge:
@@ -477,7 +485,8 @@ class StudyKnowledge:
                    attention={i["id"]: i["expected"] for i in spec.get("questionnaire") or []
                               if i.get("kind") == "attention"},
                    attention_fail_rate=attention_fail_rate, n_tasks=len(spec.get("tasks") or []),
-                   has_quiz=bool(spec.get("quiz")))
+                   has_quiz=bool(spec.get("quiz")),
+                   objects=tuple(o["name"] for o in spec["objects"]) if spec.get("objects") else None)
 
 
 def _answers(items: list[dict[str, Any]], rng: np.random.Generator, knows: StudyKnowledge) -> dict[str, Any]:
@@ -507,6 +516,18 @@ def cannot_finish(knows: StudyKnowledge, ground_truths: list[str]) -> str | None
                 "for all tasks or one per task")
     if knows.has_quiz and not knows.quiz_answers:
         return "the study has a comprehension quiz and its answers are unknown; give the experimenter token"
+    if knows.n_tasks is not None:  # the study definition is known: its objects (or the dinner table's) too
+        return truth_problem(ground_truths, task_of(knows.objects))
+    return None
+
+
+def truth_problem(ground_truths: list[str], task: str) -> str | None:
+    """Why a ground truth is not a formula over the task's objects, or None."""
+    for formula in ground_truths:
+        try:
+            truth_mask(formula, task)
+        except ValueError as exc:
+            return f"--ground-truth {formula!r}: {exc}"
     return None
 
 
@@ -535,8 +556,6 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
     problem = cannot_finish(knows, ground_truths)
     if problem is not None:
         raise ValueError(f"not joining: {problem}")
-    domain = get_domain("dinner")
-    teachers = [SimulatedTeacher(domain, truth_mask(g), noise, demo_mode) for g in ground_truths]
     rng = np.random.default_rng(seed)
     run = TeacherRun()
     counted = on_request
@@ -550,6 +569,13 @@ def run_teacher(server: str, study_id: str, ground_truths: list[str], *, noise: 
     api.on_request = count
     state = api.state() if api.token else api.join(study_id, prolific_pid=prolific_pid, session_id=session_id)["state"]
     run.participant_id, run.token = state["participant_id"], api.token
+    # The study's objects are the page's (its own, or the dinner table's): the ground truths are formulas over them.
+    task = task_of(state.get("objects") if state.get("own_objects") else None)
+    problem = truth_problem(ground_truths, task)
+    if problem is not None:
+        raise ValueError(f"the study's objects are {', '.join(state['objects'])}: {problem}")
+    domain = get_domain(task)
+    teachers = [SimulatedTeacher(domain, truth_mask(g, task), noise, demo_mode) for g in ground_truths]
     timeout = session_timeout(state, timeout)
     deadline = time.monotonic() + timeout
     while state["stage"] not in ("done", "withdrawn", "screened_out"):

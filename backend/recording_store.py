@@ -22,6 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
+from .scenes.spec import SceneSpec
+
 FOLDER = "recordings"
 SHARED_FOLDER = "motion"  # under FOLDER: motion files shared by participants (hard-linked into their folders)
 VISER_SUFFIX = ".viser"
@@ -111,11 +113,12 @@ class RecordingStore(Protocol):
         """Remove this host's copies of these participants' files (erased on another host); how many folders."""
         ...
 
-    def layout(self) -> dict[str, Any]:
-        """The scene seen from above (tables, robot base, objects' footprints, starts and slots), for replays."""
+    def layout(self, scene: SceneSpec | None = None) -> dict[str, Any]:
+        """The scene seen from above (tables, robot base, objects' footprints, starts and slots), for replays: the
+        dinner table's, or that of a study's own objects."""
         ...
 
-    def top_view(self, rid: RecordingId) -> dict[str, Any] | None:
+    def top_view(self, rid: RecordingId, scene: SceneSpec | None = None) -> dict[str, Any] | None:
         """A recorded step's poses from above, thinned for the dashboard, or None if none was saved."""
         ...
 
@@ -187,10 +190,10 @@ class FileRecordingStore:
                     pass
         return removed
 
-    def layout(self) -> dict[str, Any]:
+    def layout(self, scene: SceneSpec | None = None) -> dict[str, Any]:
         """No scene known here: ValueError (the app is composed with the scene's store)."""
         raise ValueError("this recording store knows no scene: expected the app's SceneRecordingStore")
 
-    def top_view(self, rid: RecordingId) -> dict[str, Any] | None:
+    def top_view(self, rid: RecordingId, scene: SceneSpec | None = None) -> dict[str, Any] | None:
         """No scene known here, so no top view."""
         return None

@@ -15,7 +15,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
-from .core.domain import Domain, get_domain
+from .core.domain import Domain, get_domain, objects_task
+from .scenes.spec import SceneSpec
 
 Labels = frozenset[str]
 
@@ -68,6 +69,11 @@ class Robot(Protocol):
 
     on_change: Callable[[str], None] | None
     """Told a table's key whenever what the robot shows of it changes (a motion starts or ends)."""
+
+    scene_of: Callable[[str], SceneSpec | None] | None
+    """Says which objects a table's key has: a study's own (its scene specification) or the dinner table's (None).
+    Asked once per key and process when the robot first meets the table (a study's scene never changes once
+    participants have joined), on whichever thread calls the robot; it reads the database and writes nothing."""
 
     def start(self) -> None:
         """Start the robot's own threads, if any (the runtime calls it once at start-up)."""
@@ -162,24 +168,40 @@ class TraceRobot:
 
     def __init__(self, task: str = "dinner", seconds_per_object: float = 0.0) -> None:
         self.on_change: Callable[[str], None] | None = None
+        self.scene_of: Callable[[str], SceneSpec | None] | None = None
         self.domain: Domain = get_domain(task)
         self.seconds_per_object = seconds_per_object
         self._tables: dict[str, _Table] = {}
+        self._domains: dict[str, Domain] = {}  # keys whose study has its own objects
         self._lock = threading.Lock()
+
+    def domain_of(self, key: str) -> Domain:
+        """The objects a table has: its study's own (scene_of), else the robot's task's."""
+        with self._lock:
+            known = self._domains.get(key)
+        if known is not None:
+            return known
+        spec = None if self.scene_of is None else self.scene_of(key)
+        domain = self.domain if spec is None else get_domain(objects_task(spec.names))
+        with self._lock:
+            self._domains[key] = domain
+        return domain
 
     def reset(self, key: str) -> Labels:
         """Clear the table; the initial labels."""
+        domain = self.domain_of(key)
         with self._lock:
             self._tables[key] = _Table()
-        return self.domain.labels(())
+        return domain.labels(())
 
     def place(self, key: str, obj: str) -> Labels:
         """Place one object; ValueError naming the problem if it is unknown or already placed."""
+        domain = self.domain_of(key)
         with self._lock:
             table = self._tables.setdefault(key, _Table())
-            history = self.domain.step(tuple(table.placed), obj)
+            history = domain.step(tuple(table.placed), obj)
             table.placed = list(history)
-            return self.domain.labels(history)
+            return domain.labels(history)
 
     def restore(self, key: str, placed: Sequence[str]) -> None:
         """The table holding exactly these placements."""
@@ -196,19 +218,20 @@ class TraceRobot:
     def trace(self, key: str) -> tuple[Labels, ...] | None:
         """The labels after the reset and after each placement so far, or None for an unknown table."""
         placed = self.placed(key)
-        return None if placed is None else tuple(self.domain.trace_of(placed))
+        return None if placed is None else tuple(self.domain_of(key).trace_of(placed))
 
     def plan_execution(self, key: str, events: Sequence[str], name: str, *, speed: float = 1.0) -> ExecutionPlan:
         """The execution's trace, one action per seconds_per_object / speed; ValueError names an object it cannot
         place or a speed that is not positive."""
         if speed <= 0:
             raise ValueError(f"speed {speed} is not positive: expected a playback rate such as 1.5")
+        domain = self.domain_of(key)
         history: tuple[str, ...] = ()
         for obj in events:
-            history = self.domain.step(history, obj)
+            history = domain.step(history, obj)
         events = tuple(events)
         ends = tuple(self.seconds_per_object / speed * (i + 1) for i in range(len(events)))
-        return ExecutionPlan(events, tuple(self.domain.trace_of(events)), ends)
+        return ExecutionPlan(events, tuple(domain.trace_of(events)), ends)
 
     def release(self, key: str) -> None:
         """Forget the table."""
@@ -219,8 +242,10 @@ class TraceRobot:
         """Nothing to keep: the trace robot does not move."""
 
     def close(self, key: str) -> None:
-        """Forget the table."""
+        """Forget the table (and which objects it had)."""
         self.release(key)
+        with self._lock:
+            self._domains.pop(key, None)
 
     def start(self) -> None:
         """No threads to start."""

@@ -135,6 +135,7 @@ const OBJECT_COLORS = {
   dinner_plate: "#f8fafc", small_plate: "#fef3c7", bowl: "#3b82f6", knife: "#6b7280", fork: "#9ca3af",
 };
 const STACK = ["dinner_plate", "small_plate", "bowl", "knife", "fork"];
+const ROUND = ["plate", "bowl", "cup", "glass"]; // a study's own objects (layout kind) drawn as discs
 
 /** Yaw (rotation about z, radians) of a quaternion (w, x, y, z). */
 export function quatYaw(w, x, y, z) {
@@ -179,7 +180,9 @@ export function tableView(layout, { width = 560, height = 420 } = {}) {
   const layer = svg("g", { class: "objects" });
   root.append(layer, arm, hand);
   const shapes = {};
-  for (const name of STACK.filter((n) => n in layout.objects)) {
+  // The dinner objects in their stacking order, then a study's own objects (they never share a place).
+  const drawn = [...STACK.filter((n) => n in layout.objects), ...Object.keys(layout.objects).filter((n) => !STACK.includes(n))];
+  for (const name of drawn) {
     shapes[name] = objectShape(name, layout.objects[name], scale, "object", [0, 0], 0);
     shapes[name].setAttribute("data-object", name);
     layer.append(shapes[name]);
@@ -212,13 +215,15 @@ export function tableView(layout, { width = 560, height = 420 } = {}) {
 function objectShape(name, o, scale, cls, [x, y], yaw) {
   const g = svg("g", { class: `${cls} ${cls}-${name}` });
   if (cls === "slot") g.setAttribute("transform", `translate(${x} ${y}) rotate(${-(yaw * 180) / Math.PI - 90})`);
-  if (o.shape === "disc") {
-    g.append(svg("circle", { cx: 0, cy: 0, r: o.half_x * scale, fill: cls === "slot" ? "none" : OBJECT_COLORS[name] }));
-    if (cls !== "slot" && name !== "bowl") g.append(svg("circle", { cx: 0, cy: 0, r: o.half_x * scale * 0.72, class: "rim" }));
+  const fill = cls === "slot" ? "none" : o.colour || OBJECT_COLORS[name];
+  if (o.kind ? ROUND.includes(o.kind) : o.shape === "disc") {
+    const radius = (o.kind ? o.half_y : o.half_x) * scale; // a cup's handle makes it longer than it is wide
+    g.append(svg("circle", { cx: 0, cy: 0, r: radius, fill }));
+    if (cls !== "slot" && (o.kind ? o.kind === "plate" : name !== "bowl")) g.append(svg("circle", { cx: 0, cy: 0, r: radius * 0.72, class: "rim" }));
   } else {
     g.append(svg("rect", { x: -o.half_x * scale, y: -o.half_y * scale, width: 2 * o.half_x * scale,
-      height: Math.max(2 * o.half_y * scale, 3), rx: 2, fill: cls === "slot" ? "none" : OBJECT_COLORS[name] }));
+      height: Math.max(2 * o.half_y * scale, 3), rx: 2, fill }));
   }
-  if (cls !== "slot") g.append(svg("title", {}, name.replace("_", " ")));
+  if (cls !== "slot") g.append(svg("title", {}, name.replaceAll("_", " ")));
   return g;
 }

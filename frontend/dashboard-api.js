@@ -102,7 +102,8 @@ export const restoreParticipant = (id, pid) => request("POST", `${API}/studies/$
 export const helpParticipant = (id, pid) => request("POST", `${API}/studies/${enc(id)}/participants/${enc(pid)}/help`);
 /** The standard questionnaires (SUS, NASA-TLX, Godspeed, trust) with their items, scoring and citations. */
 export const instruments = () => request("GET", `${API}/instruments`);
-export const describeFormula = (formula) => request("GET", `${API}/formulas/describe?formula=${enc(formula)}`);
+export const describeFormula = (formula, objects = []) => request("GET", `${API}/formulas/describe?formula=${enc(formula)}`
+  + (objects.length ? `&objects=${enc(objects.join(","))}` : ""));
 
 export function live(id, dropoutMinutes) {
   const query = dropoutMinutes ? `?dropout_minutes=${enc(dropoutMinutes)}` : "";
@@ -152,7 +153,12 @@ export async function studyChoices() {
   const props = schema.components.schemas.StudyIn.properties;
   const item = schema.components.schemas.ItemIn.properties;
   const task = schema.components.schemas.TaskIn.properties;
+  const object = schema.components.schemas.ObjectIn;
   return {
+    shapes: object.properties.shape.enum,
+    // Each shape's size range in cm (the schema's rule per shape), e.g. {cup: [6, 10]}.
+    sizes: Object.fromEntries(object.allOf.map((rule) => [rule.if.properties.shape.const,
+      [rule.then.properties.size.anyOf[1].minimum, rule.then.properties.size.anyOf[1].maximum]])),
     priors: props.prior.enum, criteria: props.criterion.enum, conditions: props.conditions.items.enum,
     assignments: props.assignment.enum, itemKinds: item.kind.enum, taskKeys: task.key.enum,
     taskOrders: props.task_order.enum,

@@ -87,7 +87,7 @@ export function studyFormView({ choices, study = null, onSaved }) {
       if (!text) { words.textContent = ""; return; }
       timer = setTimeout(async () => {
         try {
-          const answer = await api.describeFormula(text);
+          const answer = await api.describeFormula(text, objectNames());
           words.className = "formula-words small ok";
           words.textContent = `In words: ${answer.description}`;
         } catch (error) {
@@ -107,6 +107,35 @@ export function studyFormView({ choices, study = null, onSaved }) {
     describe();
   };
   (study?.tasks ?? [{ key: "task1" }]).forEach(addTask);
+
+  // ---- the study's own objects (none: the paper's dinner table)
+  const objects = h("div", { class: "rows", id: "objects" });
+  const objectNames = () => [...objects.querySelectorAll("[name=object_name]")].map((i) => i.value.trim()).filter(Boolean);
+  const addObject = (o = { name: "", shape: "plate", colour: "#3366cc", size: null, slot: { x: 0, y: 0 } }) => {
+    const i = objects.children.length;
+    const shape = select("object_shape", choices.shapes, o.shape);
+    shape.removeAttribute("id"); // one per row: the label around it names it
+    const size = h("input", { type: "number", name: "object_size", step: 0.5, value: o.size ?? "", size: 4 });
+    const sizeHint = () => {
+      const [low, high] = choices.sizes[shape.value] ?? [];
+      size.min = low; size.max = high;
+      size.placeholder = low === undefined ? "" : `${low}-${high}`;
+    };
+    shape.addEventListener("change", sizeHint);
+    sizeHint();
+    objects.append(h("div", { class: "row object-row" },
+      field("Name", h("input", { name: "object_name", value: o.name, placeholder: "e.g. lunch_box", size: 12 }), `objects.${i}.name`),
+      field("Shape", shape, `objects.${i}.shape`),
+      field("Colour", h("input", { type: "color", name: "object_colour", value: o.colour }), `objects.${i}.colour`),
+      field("Size (cm across or long)", size, `objects.${i}.size`),
+      field("Place: cm right", h("input", { type: "number", name: "object_x", min: -24, max: 24, step: 0.5, value: o.slot.x, size: 4 }), `objects.${i}.slot`),
+      field("cm towards the robot", h("input", { type: "number", name: "object_y", min: -22, max: 22, step: 0.5, value: o.slot.y, size: 4 }), `objects.${i}.slot.y`),
+      removeButton()));
+  };
+  (study?.objects ?? []).forEach(addObject);
+  objects.addEventListener("change", () => {
+    for (const input of tasks.querySelectorAll("[name=ground_truth]")) input.dispatchEvent(new Event("input"));
+  });
 
   // ---- comprehension quiz
   const quiz = h("div", { class: "rows", id: "quiz" });
@@ -158,8 +187,15 @@ export function studyFormView({ choices, study = null, onSaved }) {
   const collect = () => {
     const f = new FormData(form);
     const int = (name) => (optional(f.get(name)) === null ? null : Number(f.get(name)));
+    const own = [...objects.querySelectorAll(".object-row")].map((row) => {
+      const value = (name) => row.querySelector(`[name=${name}]`).value;
+      const number = (name) => (optional(value(name)) === null ? null : Number(value(name)));
+      return { name: value("object_name").trim(), shape: value("object_shape"), colour: value("object_colour"),
+        size: number("object_size"), slot: { x: number("object_x") ?? 0, y: number("object_y") ?? 0 } };
+    });
     return {
       name: optional(f.get("name")) ?? (editing ? study.name : undefined),
+      objects: own.length ? own : null,
       tasks: [...tasks.querySelectorAll(".task-row")].map((row) => {
         const key = row.querySelector("[name=task_key]").value;
         if (key !== "custom") return { key };
@@ -240,6 +276,16 @@ export function studyFormView({ choices, study = null, onSaved }) {
     frozen ? h("p", { class: "note" }, `This study is ${study.status}: only its name, pilot flag, completion codes, `
       + "redirect and timeout can change. Clone it to change the rest.") : null,
     field("Name", h("input", { name: "name", id: "name", value: editing ? study.name : "", placeholder: choices.defaults.name }), "name", { cls: "grow" }),
+    section("Objects (none: the paper's dinner table with its five objects)",
+      h("p", { class: "small muted" }, "Each object's name is what the task formulas use (lower-case letters, digits "
+        + "and _). Its place on Table B is measured from the table's centre as the goal picture shows it: to the right, "
+        + "and towards the robot. The objects start on Table A, laid out by the server. A study takes 2 to 5 objects."),
+      objects,
+      h("span", { class: "field-error", "data-error-for": "objects" }),
+      h("div", { class: "row" },
+        h("button", { type: "button", class: "ghost", id: "add-object", onclick: () => addObject() }, "Add an object"),
+        study?.objects ? h("a", { href: `/study/${encodeURIComponent(study.id)}/goal/0.svg`, target: "_blank",
+          rel: "noopener", id: "goal-preview" }, "See the first task's goal picture") : null)),
     section("Tasks", tasks,
       h("button", { type: "button", class: "ghost", id: "add-task", onclick: () => addTask({ key: "task2" }) }, "Add a task"),
       field("Task order", select("task_order", choices.taskOrders, d.task_order ?? "fixed"), "task_order")),

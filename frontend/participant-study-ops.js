@@ -82,7 +82,7 @@ export function quizView(state, { onQuiz, pending }) {
       h("p", {}, which, left === 1 ? "This is your last try." : `You have ${left} tries left.`),
       h("p", {}, "Your answers are kept; change the ones you want.")) : null,
     h("details", { class: "reminder", id: "quiz-instructions", open: Boolean(failed) },
-      h("summary", {}, "Read the instructions again"), instructionsBody()),
+      h("summary", {}, "Read the instructions again"), instructionsBody(state)),
     form);
 }
 

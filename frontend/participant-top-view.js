@@ -11,6 +11,7 @@ const PAD = 0.05; // metres around the tables and the robot
 const LABEL_PX = 14; // label text height on screen, whatever the view's size
 const COLORS = { dinner_plate: "#ffffff", small_plate: "#f6d98b", bowl: "#3b82f6", knife: "#4b5563", fork: "#6b7280" };
 const STACK = ["dinner_plate", "small_plate", "bowl", "knife", "fork"]; // lowest first when they share a place
+const ROUND = ["plate", "bowl", "cup", "glass"]; // a study's own objects (layout kind): drawn as discs
 const PLACE_SECONDS = 1.2; // a placement's glide in a demonstration
 
 function svg(tag, attrs = {}, text = null) {
@@ -86,15 +87,19 @@ export function tablePicture(layout, { onPick = null } = {}) {
   names.push({ x: rx + r.radius * MM, y: ry, text: "robot", table: true, right: true });
 
   const shapes = {};
-  for (const name of STACK.filter((n) => n in layout.objects)) {
+  // The dinner objects in their stacking order; a study's own objects in theirs (they never share a place).
+  const drawn = [...STACK.filter((n) => n in layout.objects), ...Object.keys(layout.objects).filter((n) => !STACK.includes(n))];
+  for (const name of drawn) {
     const o = layout.objects[name];
     const g = svg("g", { class: `object object-${name}`, "data-object": name });
-    if (o.shape === "disc") {
-      g.append(svg("circle", { r: o.half_x * MM, fill: COLORS[name] }));
-      if (name !== "bowl") g.append(svg("circle", { r: o.half_x * MM * 0.7, class: "rim" }));
+    const fill = o.colour || COLORS[name];
+    if (o.kind ? ROUND.includes(o.kind) : o.shape === "disc") {
+      const radius = (o.kind ? o.half_y : o.half_x) * MM; // a cup's handle makes it longer than it is wide
+      g.append(svg("circle", { r: radius, fill }));
+      if (o.kind ? o.kind === "plate" : name !== "bowl") g.append(svg("circle", { r: radius * 0.7, class: "rim" }));
     } else {
       g.append(svg("rect", { x: -o.half_x * MM, y: -Math.max(o.half_y * MM, 7), width: 2 * o.half_x * MM,
-        height: Math.max(2 * o.half_y * MM, 14), rx: 6, fill: COLORS[name] }));
+        height: Math.max(2 * o.half_y * MM, 14), rx: 6, fill }));
     }
     if (onPick) g.addEventListener("click", () => onPick(name));
     shapes[name] = g;

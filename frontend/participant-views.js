@@ -10,6 +10,14 @@ const theList = (objs) => {
   return named.length > 1 ? `${named.slice(0, -1).join(", ")} and ${named[named.length - 1]}` : named.join("");
 };
 const GOAL_PICTURES = { task1: "goal-task1.png", task2: "goal-task2.png" };
+const NUMBERS = ["no", "one", "two", "three", "four", "five", "six", "seven", "eight", "nine", "ten"];
+/** "a lunch box, an apple and a mug": a study's own objects as the instructions name them. */
+const someList = (objs) => {
+  const named = objs.map((o) => `${/^[aeiou]/.test(o) ? "an" : "a"} ${pretty(o)}`);
+  return named.length > 1 ? `${named.slice(0, -1).join(", ")} and ${named[named.length - 1]}` : named.join("");
+};
+/** What the robot does, in the page's words: the dinner table's, or a study's own objects' (any task). */
+const doing = (state) => (state?.own_objects ? "do the task" : "set the table");
 const STEP_NAMES = { practice: "Practice round", demonstration: "Demonstration", query: "Question", test: "Test" };
 const LIKERT = ["Strongly disagree", "Disagree", "Neither", "Agree", "Strongly agree"];
 
@@ -53,36 +61,44 @@ export function consentView(state, { onAgree, onDecline }) {
       h("button", { onclick: onDecline }, "I do not agree")));
 }
 
-/** What the study asks of the participant (shown before the first task, and again from the quiz). */
-export function instructionsBody() {
-  return h("div", { class: "instructions-body" },
-    h("p", {}, "You will teach a robot arm to set a dinner table. The arm takes five objects (a dinner plate, a small ",
+/** What the study asks of the participant (shown before the first task, and again from the quiz); `state` names a
+ * study's own objects (without it, or for the dinner table, the paper's words). */
+export function instructionsBody(state = null) {
+  const own = state?.own_objects;
+  const intro = own
+    ? h("p", {}, `You will teach a robot arm a task with ${NUMBERS[own.length] ?? own.length} objects (`,
+      someList(own.map((o) => o.name)), "). The arm takes them from Table A, on the right of the 3D view, and puts ",
+      "them on Table B, on the left.")
+    : h("p", {}, "You will teach a robot arm to set a dinner table. The arm takes five objects (a dinner plate, a small ",
       "plate, a bowl, a knife and a fork) from Table A, on the right of the 3D view, and puts them on Table B, on ",
-      "the left."),
+      "the left.");
+  return h("div", { class: "instructions-body" },
+    intro,
     h("ol", {},
       h("li", {}, h("strong", {}, "You show it. "), "Click an object in the 3D view and the robot places it. ",
         "Click the objects in the order you want. Press the finish button when you are done; you do not have to ",
         "place every object if the task says so."),
       h("li", {}, h("strong", {}, "It asks you. "), "The robot tries the task its own way. When it has finished, ",
         "tell it whether what it did is acceptable for the task."),
-      h("li", {}, h("strong", {}, "It shows you. "), "At the end of each task the robot sets the table by itself ",
+      h("li", {}, h("strong", {}, "It shows you. "), `At the end of each task the robot ${own ? "does the task" : "sets the table"} by itself `,
         "a few times so you can see what it has learned.")),
     h("p", {}, "The order in which things are placed can matter. Before each task you will see what the table should ",
       "look like at the end."));
 }
 
-export function instructionsView(_state, { onStart }) {
+export function instructionsView(state, { onStart }) {
   return h("section", { class: "card narrow" },
     heading("How this works"),
-    instructionsBody(),
+    instructionsBody(state),
     h("div", { class: "buttons" }, h("button", { class: "primary", onclick: onStart }, "Start")));
 }
 
 export function goalFigure(task, assetUrl) {
-  const picture = GOAL_PICTURES[task.key];
+  // A study with its own objects: the server draws each task's goal from its layout (task.goal_picture).
+  const picture = task.goal_picture || (GOAL_PICTURES[task.key] && assetUrl(GOAL_PICTURES[task.key]));
   if (!picture) return null;
   return h("figure", { class: "goal" },
-    h("img", { src: assetUrl(picture), alt: `Table B when ${task.name} is done: the objects in their places, labelled` }),
+    h("img", { src: picture, alt: `Table B when ${task.name} is done: the objects in their places, labelled` }),
     h("figcaption", {}, "What Table B should look like at the end."));
 }
 
@@ -148,11 +164,11 @@ function demonstrationPanel(state, live, { onPlace, onFinish, onConfirmFinish, o
   const status = moving
     ? (caption ? `${caption}. Please wait until it has finished.` : "The robot is busy. Please wait.")
     : waiting.length
-      ? `Click the next object ${live.view === false ? "below" : live.mode === "2d" ? "in the 2D view" : "in the 3D view"}, or finish if the table is set.`
+      ? `Click the next object ${live.view === false ? "below" : live.mode === "2d" ? "in the 2D view" : "in the 3D view"}, or finish ${state.own_objects ? "when the task is done" : "if the table is set"}.`
       : "All objects are on Table B. Press the finish button.";
   const finishLabel = practice ? "Finish practice" : "Finish demonstration";
   return h("div", {},
-    heading(practice ? "Practice: try it out" : "Show the robot how to set the table"),
+    heading(practice ? "Practice: try it out" : `Show the robot how to ${doing(state)}`),
     h("p", { class: "explain" }, practice
       ? "This round does not count. Click objects on Table A (right) and watch the robot put them on Table B (left)."
       : "Click the objects on Table A (right) in the order you want them on Table B (left). The robot places each one."),
@@ -181,8 +197,8 @@ function executionPanel(state, live, { onStart, onAssess, onReplay, pending }) {
     return h("div", {},
       heading(title),
       h("p", {}, query
-        ? "The robot will set the table its own way. Watch it, then tell it whether that way is acceptable for this task."
-        : "The robot will set the table by itself. Watch it, then say whether it did the task correctly."),
+        ? `The robot will ${doing(state)} its own way. Watch it, then tell it whether that way is acceptable for this task.`
+        : `The robot will ${doing(state)} by itself. Watch it, then say whether it did the task correctly.`),
       statusLine("Press the button when you are ready to watch."),
       h("div", { class: "buttons" },
         h("button", { class: "primary", id: "start", disabled: pending, onclick: onStart }, "Watch the robot")));
@@ -191,7 +207,7 @@ function executionPanel(state, live, { onStart, onAssess, onReplay, pending }) {
   if (execution.status === "running") {
     return h("div", {},
       heading(title),
-      statusLine(live.caption ? `${live.caption}.` : `The robot is setting the table (${events.length} objects).`, true),
+      statusLine(live.caption ? `${live.caption}.` : `The robot is ${state.own_objects ? "placing objects" : "setting the table"} (${events.length} objects).`, true),
       h("p", { class: "hint" }, "The buttons to answer appear when the robot has finished."));
   }
   const finalLabels = execution.trace?.length ? execution.trace[execution.trace.length - 1] : [];
@@ -216,10 +232,10 @@ function executionPanel(state, live, { onStart, onAssess, onReplay, pending }) {
       h("p", { class: "placed" }, h("strong", {}, "It placed, in this order: "),
         events.length ? events.map((o, i) => `${i + 1}. the ${pretty(o)}`).join(", ") : "nothing"),
       h("p", { class: "placed not-placed" }, h("strong", {}, "It did not place: "),
-        notPlaced.length ? theList(notPlaced) : "nothing (it placed all five objects)"),
+        notPlaced.length ? theList(notPlaced) : `nothing (it placed all ${NUMBERS[state.objects.length] ?? state.objects.length} objects)`),
       missed.length ? h("p", { class: "placed" }, h("strong", {}, "Not in place at the end: "), theList(missed)) : null),
     h("p", { class: "question" }, query
-      ? "Is this an acceptable way to set the table for this task?"
+      ? (state.own_objects ? "Is this an acceptable way to do this task?" : "Is this an acceptable way to set the table for this task?")
       : "Did the robot do the task correctly?"),
     h("div", { class: "buttons" },
       h("button", { class: "primary good", id: "acceptable", disabled: locked,

@@ -39,6 +39,7 @@ const el = {
   modeNote: document.getElementById("view-mode-note"),
   banner: document.getElementById("banner"),
   topProgress: document.getElementById("top-progress"),
+  brand: document.querySelector(".topbar .brand"),
   progress: document.getElementById("study-progress"),
   progressBar: document.getElementById("study-progress-bar"),
   progressText: document.getElementById("study-progress-text"),
@@ -215,6 +216,7 @@ function render(force = false) {
   }
   if (moved) confirming = false;
   el.topProgress.textContent = state.stage === "task" ? state.task.name : "";
+  if (state.own_objects) el.brand.textContent = document.title = "Teach a robot a task"; // not a dinner table
   renderProgress();
   document.body.classList.toggle("in-task", state.stage === "task" && !intro);
   const withPending = { ...handlers, pending, confirming };

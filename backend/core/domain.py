@@ -103,11 +103,28 @@ def synthetic_domain(n_waypoints: int = 5, n_threats: int = 5, success_prob: flo
 
 
 DOMAINS = {"dinner": dinner_domain, "synthetic": synthetic_domain}
+OBJECTS_PREFIX = "objects:"  # a task with its own objects: "objects:lunch_box,apple,napkin"
 
 
-@lru_cache(maxsize=None)
+def objects_task(names: tuple[str, ...] | list[str]) -> str:
+    """The task name of placing these objects (a dinner-like task over a study's own objects)."""
+    return OBJECTS_PREFIX + ",".join(names)
+
+
+def objects_domain(names: tuple[str, ...]) -> Domain:
+    """The task of placing these objects, each at most once, in any order (the dinner table's dynamics)."""
+    return Domain("objects", names, names, names, True, 1.0, "place")
+
+
+@lru_cache(maxsize=64)
 def get_domain(name: str) -> Domain:
-    """A domain by name ('dinner' or 'synthetic')."""
+    """A domain by name ('dinner', 'synthetic', or 'objects:a,b,...' for a task with its own objects)."""
+    if name.startswith(OBJECTS_PREFIX):
+        names = tuple(name[len(OBJECTS_PREFIX):].split(","))
+        if len(names) < 2 or len(set(names)) != len(names) or not all(names):
+            raise ValueError(f"task {name!r} names its objects badly; expected 'objects:' and 2 or more distinct "
+                             "comma-separated names")
+        return objects_domain(names)
     if name not in DOMAINS:
-        raise ValueError(f"unknown task {name!r}; expected one of {', '.join(DOMAINS)}")
+        raise ValueError(f"unknown task {name!r}; expected one of {', '.join(DOMAINS)} or objects:a,b,...")
     return DOMAINS[name]()

@@ -64,6 +64,13 @@ def get_study(session: Session, *, study_id: str, for_update: bool = False) -> S
     return session.scalars(_STUDY_FOR_UPDATE if for_update else _STUDY, {"study_id": study_id}).one_or_none()
 
 
+def study_objects_of_participant(session: Session, *, participant_id: int) -> list[dict[str, Any]] | None:
+    """The own objects of a participant's study (None: the dinner table, or no such participant)."""
+    stmt = select(StudyRow.objects).join(ParticipantRow, ParticipantRow.study_id == StudyRow.id).where(
+        ParticipantRow.id == participant_id)
+    return session.scalars(stmt).one_or_none()
+
+
 def list_studies(session: Session) -> list[StudyRow]:
     """Every study, newest first."""
     return list(session.scalars(select(StudyRow).order_by(StudyRow.created_at.desc(), StudyRow.id)))

@@ -19,6 +19,7 @@ from typing import Any
 
 from ..recording_store import (FOLDER, SUFFIXES, VISER_SUFFIX, FileRecordingStore, RecordingFile, RecordingId,
                                RecordingStore, check_uid)
+from ..scenes.spec import SceneSpec
 from . import recording_rows
 from .engine import Database
 
@@ -119,15 +120,15 @@ class DatabaseRecordingStore:
             FileRecordingStore(self.data_dir).sweep_shared()
         return removed
 
-    def layout(self) -> dict[str, Any]:
+    def layout(self, scene: SceneSpec | None = None) -> dict[str, Any]:
         """The scene seen from above (the local store's)."""
-        return self.local.layout()
+        return self.local.layout(scene)
 
-    def top_view(self, rid: RecordingId) -> dict[str, Any] | None:
+    def top_view(self, rid: RecordingId, scene: SceneSpec | None = None) -> dict[str, Any] | None:
         """A recorded step from above, its .npz and .json fetched from the database if this host lacks them."""
         if not (self.fetch(rid, ".npz") and self.fetch(rid, ".json")):
             return None
-        return self.local.top_view(rid)
+        return self.local.top_view(rid, scene)
 
 
 def make_store(kind: str, local: RecordingStore, db: Database, data_dir: Path | str) -> RecordingStore:

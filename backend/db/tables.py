@@ -87,6 +87,8 @@ class StudyRow(Base):
     quiz_feedback: Mapped[bool] = mapped_column(Boolean, default=True, server_default=true())
     # The learner's assumed verdict-flip probability in [0, 0.5) (core.belief): 0 is the authors' learner.
     flip_rate: Mapped[float] = mapped_column(Float, default=0.0, server_default=text("0.0"))
+    # A study's own objects (tableteach.scenes.SceneSpec.to_json: name, shape, colour, size, slot); None: the dinner.
+    objects: Mapped[list[dict[str, Any]] | None] = mapped_column(JSON, nullable=True)
     created_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow)
     updated_at: Mapped[datetime] = mapped_column(DateTime(timezone=True), default=utcnow, onupdate=utcnow)
 

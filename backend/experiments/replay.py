@@ -20,7 +20,7 @@ from typing import Any, Iterator, Sequence
 
 from ..core.belief import check_flip_rate
 from ..core.counterfactual import DATA_CHOICES, LearnerSpec, parse_learners, step_views
-from ..core.domain import get_domain
+from ..core.domain import get_domain, objects_task
 from ..core.session import Trace, Verdicts
 
 __all__ = ["DATA_CHOICES", "LearnerSpec", "parse_learners", "read_export", "replay", "sessions", "study_flip_rate"]
@@ -110,14 +110,16 @@ def _verdicts(rows: Sequence[dict[str, str]]) -> Verdicts:
 
 def replay(export: Export, learners: Sequence[LearnerSpec]) -> Iterator[dict[str, Any]]:
     """One row per participant, task, step and learner: what that learner believes after the same data."""
-    domain = get_domain("dinner")
+    own = export.study.get("objects")  # a study with its own objects: its formulas are over them
+    task = "dinner" if not own else objects_task(tuple(o["name"] for o in own))
+    domain = get_domain(task)
     tasks = export.study["tasks"]
     for (participant, task_index), rows in sorted(sessions(export).items(), key=_session_order):
         truth_text = tasks[task_index].get("ground_truth")
         truth = None if truth_text is None else domain.clause_space.mask_of_formula(truth_text)
         data = _verdicts(rows)
         for learner in learners:
-            views = step_views(learner, data, truth, task="dinner", study_prior=export.study["prior"],
+            views = step_views(learner, data, truth, task=task, study_prior=export.study["prior"],
                                study_flip_rate=study_flip_rate(export))
             for row in rows:
                 view = views[int(row["step"])]

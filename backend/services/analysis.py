@@ -13,7 +13,6 @@ import statistics
 from typing import Any
 
 from ..core import session as core
-from ..core.domain import get_domain
 from ..db import analysis_queries as aq
 from ..db import repository as repo
 from ..db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
@@ -30,6 +29,7 @@ from .monitoring import (
 )
 from .planning import session_of
 from .studies import study_row
+from .study_objects import study_domain, study_scene
 
 TOP_K = 5
 
@@ -137,10 +137,10 @@ def _event_view(e: EventRow) -> dict[str, Any]:
 
 def participant_history(ctx: Context, study_id: str, participant_id: int) -> dict[str, Any]:
     """Everything one participant did: events, executions with traces and verdicts, the belief after each step."""
-    space = get_domain("dinner").clause_space
     now = utcnow()
     with ctx.db.read() as s:
         study = study_row(s, study_id)
+        space = study_domain(study).clause_space
         p = study_participant(s, study_id, participant_id)
         events = aq.participant_events(s, participant_id=p.id)
         executions = _executions(events)
@@ -248,7 +248,7 @@ def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int,
            step_index: int) -> dict[str, Any]:
     """One step's replay: the recorded poses if the robot saved them, else the trace to replay step by step."""
     with ctx.db.read() as s:
-        study_row(s, study_id)
+        scene = study_scene(study_row(s, study_id))
         participant = study_participant(s, study_id, participant_id)
         pid, uid = participant.id, participant.uid
         executions = _executions(aq.participant_events(s, participant_id=pid))
@@ -259,9 +259,9 @@ def replay(ctx: Context, study_id: str, participant_id: int, *, task_index: int,
     execution = found[0]
     if execution["trace"] is None:
         raise NotFound(f"{step_kind} {step_index} of task {task_index} has not finished yet; replay it when it has")
-    layout = ctx.store.layout()
+    layout = ctx.store.layout(scene)
     # The trace robot saves no recording: the dashboard replays the trace instead.
-    recording = ctx.store.top_view(RecordingId(uid, task_index, step_kind, step_index))
+    recording = ctx.store.top_view(RecordingId(uid, task_index, step_kind, step_index), scene)
     return {"task_index": task_index, "kind": step_kind, "index": step_index,
             "source": "trace" if recording is None else "recording", "objects": execution["objects"] or [],
             "trace": execution["trace"], "acceptable": execution["acceptable"], "layout": layout,

@@ -7,6 +7,8 @@ import json
 from collections.abc import Iterable, Iterator
 from typing import Any
 
+from ..core.domain import DINNER_OBJECTS
+from ..scenes.spec import SIZE_MEANING
 from .consistency import FLAG_BELOW
 from .context import Context
 from .exports import EXPORT_COLUMNS, EXPORTS, export_rows
@@ -25,6 +27,7 @@ END_REASONS = ("declined_consent, withdrew (data deleted), comprehension (failed
 OUTCOME_LEVELS = "; ".join(f"{name} ({words})" for name, words in OUTCOME_WORDS.items()) + "; empty while under way"
 TRACE = "JSON list of states, each a sorted list of the objects on the table"
 STEP_KINDS = "practice, demonstration, query, test"
+DINNER_OBJECT_LEVELS = ", ".join(DINNER_OBJECTS)  # a study with its own objects lists them instead
 
 # column -> (type, meaning, units or levels); a column's entry is shared by every file that has it.
 COMMON: dict[str, tuple[str, str, str]] = {
@@ -86,8 +89,7 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
                  "was screened out), helped_on (the experimenter moved a stuck participant past their stage), "
                  "tab_hidden (attention telemetry from the page: its tab was hidden), window_blur (the window lost "
                  "the focus), paste (text pasted into an answer), still_here (answered \"are you still there?\")"),
-        "object": ("category", "the object placed (place and placed events)",
-                   "dinner_plate, small_plate, bowl, knife, fork"),
+        "object": ("category", "the object placed (place and placed events)", DINNER_OBJECT_LEVELS),
         "labels": ("json", "the objects in their places on the table after a placement, as the robot reported them "
                    "(placed events)", "JSON list"),
         "robot_events": ("json", "the objects the robot placed, in order", "JSON list"),
@@ -199,12 +201,27 @@ def _score_rows(questionnaire: list[dict[str, Any]]) -> Iterator[list[Any]]:
 def codebook_rows(ctx: Context, study_id: str) -> list[list[Any]]:
     """The codebook of a study's exports, header first (NotFound for an unknown study)."""
     study = get_study(ctx, study_id)
+    own = study.get("objects") or []
     rows = [CODEBOOK_COLUMNS]
     for name in EXPORTS:
         for column in EXPORT_COLUMNS[name]:
             kind, meaning, units = MEANINGS[name].get(column) or COMMON[column]
+            if own and units == DINNER_OBJECT_LEVELS:
+                units = ", ".join(o["name"] for o in own)  # the study's own objects
             rows.append([f"{name}.csv", column, kind, meaning, units, ""])
-    return rows + list(_item_rows(study["questionnaire"])) + list(_score_rows(study["questionnaire"]))
+    return (rows + list(_item_rows(study["questionnaire"])) + list(_score_rows(study["questionnaire"]))
+            + list(_object_rows(own)))
+
+
+def _object_rows(objects: list[dict[str, Any]]) -> Iterator[list[Any]]:
+    """One row per object of a study with its own objects: what study.json's objects say about it."""
+    for o in objects:
+        what = SIZE_MEANING.get(o["shape"], "size")
+        yield ["study.json", f"objects where name = {o['name']}", "category",
+               f"one of the study's own objects (its name is the proposition '{o['name']}' of the formulas): a "
+               f"{o['shape']} of {what} {o['size']:g} cm, colour {o['colour']}, its place on Table B at x "
+               f"{o['slot']['x']:g} cm, y {o['slot']['y']:g} cm from the table's centre (x to the right, y towards "
+               "the robot, as the goal picture shows it)", "", ""]
 
 
 # codebook type -> Frictionless Table Schema field type (JSON cells stay text: their shape is in the description)

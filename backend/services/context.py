@@ -19,6 +19,7 @@ from ..recording_store import FileRecordingStore, RecordingStore
 from .notify import LocalNotifier, make_notifier, participant_of_key
 from .planning import Planner
 from .runtime import Runtime
+from .study_objects import scene_lookup
 
 
 TAB_LEASE_SECONDS = 15.0
@@ -75,6 +76,7 @@ class Context:
             self.recordings = FileRecordingStore(self.settings.data_dir)
         # The robot reports its own changes (motion starts and ends): the participant's page is told.
         self.robot.on_change = self._robot_changed
+        self.robot.scene_of = scene_lookup(self.db)  # a table's objects: its study's own, or the dinner table
 
     def _robot_changed(self, key: str) -> None:
         participant_id = participant_of_key(key)

@@ -9,7 +9,9 @@ import math
 from typing import Any
 
 from .context import Context
-from .viewing import current_motion, participant_uid_of
+from .state import participant_and_study
+from .study_objects import study_scene
+from .viewing import current_motion
 
 
 def _yaw(w: float, x: float, y: float, z: float) -> float:
@@ -28,11 +30,13 @@ def compact_motion(recording: dict[str, Any]) -> dict[str, Any]:
 def flat_view(ctx: Context, token: str) -> dict[str, Any]:
     """The tables, robot base and objects from above, and the current step's recorded motion (None when the step
     has none: a demonstration, or an execution not worked out yet, `pending` then being true)."""
-    participant_uid_of(ctx, token)  # an unknown token is refused before the scene is loaded
+    with ctx.db.read() as s:
+        _participant, study = participant_and_study(s, token)  # an unknown token is refused before the scene is loaded
+        scene = study_scene(study)
     motion = current_motion(ctx, token)
-    recorded = None if motion is None else ctx.store.top_view(motion.recording)
+    recorded = None if motion is None else ctx.store.top_view(motion.recording, scene)
     step = None if motion is None else {"task_index": motion.recording.task_index,
                                         "kind": motion.recording.step_kind, "index": motion.recording.step_index}
-    return {"layout": ctx.store.layout(), "step": step, "replays": 0 if motion is None else motion.replays,
+    return {"layout": ctx.store.layout(scene), "step": step, "replays": 0 if motion is None else motion.replays,
             "pending": motion is not None and recorded is None,
             "motion": None if recorded is None else compact_motion(recorded)}

@@ -20,12 +20,12 @@ BEFORE_TASKS = ("consent", "instructions", "quiz")  # stages before the first ta
 ENDED = ("done", "withdrawn", "screened_out")  # nothing left to do
 
 
-def required_objects(task: dict[str, Any]) -> list[str]:
+def required_objects(task: dict[str, Any], domain: str = "dinner") -> list[str]:
     """Objects the task's ground truth says must end up on the table (none if the ground truth is unknown)."""
     formula = task.get("ground_truth")
     if not formula:
         return []
-    space = get_domain("dinner").clause_space
+    space = get_domain(domain).clause_space
     return [c.first for c in space.clauses_of(space.mask_of_formula(formula)) if c.kind == "F"]
 
 

@@ -79,9 +79,9 @@ def list_participants(ctx: Context, study_id: str) -> list[dict[str, Any]]:
 
 
 @lru_cache(maxsize=65536)  # the same few formulas head most participants' beliefs
-def _formula_view(mask: int) -> tuple[str, str]:
+def _formula_view(task: str, mask: int) -> tuple[str, str]:
     """A clause set's formula text and plain-English description."""
-    space = get_domain("dinner").clause_space
+    space = get_domain(task).clause_space
     return space.text_of(mask), space.describe(mask)
 
 
@@ -93,11 +93,11 @@ def belief_view(task: str, prior: str, data: core.Verdicts, truth_formula: str |
     """Entropy, similarity to the truth, MAP and top formulas of the belief after these (trace, acceptable,
     is_verdict) items, for the learner with this flip rate (0: the authors')."""
     belief = core.noisy_belief_after(task, prior, flip_rate, data)
-    truth = None if truth_formula is None else get_domain("dinner").clause_space.mask_of_formula(truth_formula)
-    map_formula, map_description = _formula_view(belief.map_mask)
+    truth = None if truth_formula is None else get_domain(task).clause_space.mask_of_formula(truth_formula)
+    map_formula, map_description = _formula_view(task, belief.map_mask)
     top_formulas = []
     for mask, p in belief.top(top):
-        formula, description = _formula_view(mask)
+        formula, description = _formula_view(task, mask)
         top_formulas.append({"formula": formula, "description": description, "p": p})
     return {
         "entropy": belief.entropy,

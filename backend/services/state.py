@@ -11,7 +11,7 @@ from datetime import timedelta
 from typing import Any
 
 from ..core import session as core
-from ..core.domain import DINNER_OBJECTS, get_domain
+from ..core.domain import get_domain
 from ..db import repository as repo
 from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..db import jobs as job_rows
@@ -24,6 +24,7 @@ from .runtime import PLAN_AHEAD
 from .guidance import lay_summary, progress, required_objects
 from .page_state import extend_state
 from .planning import ROBOT_TURNS, position_of, session_of
+from .study_objects import study_objects, task_name
 
 log = logging.getLogger(__name__)
 
@@ -71,6 +72,11 @@ def mark_timed_out(s: Any, participant: ParticipantRow) -> bool:
     if idle_since is not None:  # the time-out is not activity: they left when they last acted
         participant.last_activity_at = participant.finished_at = idle_since
     return True
+
+
+def goal_picture_path(study_id: str, task_index: int) -> str:
+    """Where the page loads the goal picture of a task of a study with its own objects (web/pages.py serves it)."""
+    return f"/study/{study_id}/goal/{task_index}.svg"
 
 
 def table_key(participant_id: int, task_index: int | None) -> str:
@@ -123,7 +129,7 @@ def delete_recordings(ctx: Context, participant: ParticipantRow) -> int:
 
 def session_config(study: StudyRow, participant: ParticipantRow, task_index: int) -> core.SessionConfig:
     return core.SessionConfig(
-        task="dinner", prior=study.prior, protocol=participant.condition,
+        task=task_name(study), prior=study.prior, protocol=participant.condition,
         # The practice trial is there to learn the interface, so only the task this participant does first has one.
         n_practice=study.n_practice if task_sequence(study, participant)[0] == task_index else 0,
         n_demonstrations=study.n_demonstrations, n_queries=study.n_queries, n_tests=study.n_tests,
@@ -179,19 +185,24 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
         "study_id": study.id,
         "stage": participant.stage,
         "n_events": participant.n_events,
-        "objects": list(DINNER_OBJECTS),
+        "objects": list(study_objects(study)),
         "consent": {"text": study.consent_text, "version": study.consent_version,
                     "given_at": iso(participant.consent_at)},
         "task": None, "step": None, "demonstration": None, "execution": None,
         "questionnaire": None, "completion": None, "quiz": None, "replayed": replayed,
     }
+    if study.objects:  # a study with its own objects: how each looks (the page words its text for any task)
+        out["own_objects"] = [{k: o[k] for k in ("name", "shape", "colour")} for o in study.objects]
     if participant.stage == "task":
         ts = current_task(s, participant)
         task = study.tasks[participant.task_index]
         sequence = task_sequence(study, participant)
         out["task"] = {"index": participant.task_index, "total": len(study.tasks), "name": task["name"],
                        "instructions": task["instructions"], "key": task["key"],
-                       "position": sequence.index(participant.task_index), "required": required_objects(task)}
+                       "position": sequence.index(participant.task_index),
+                       "required": required_objects(task, task_name(study))}
+        if study.objects:  # the study's own objects: the page draws them and shows this goal picture
+            out["task"]["goal_picture"] = goal_picture_path(study.id, participant.task_index)
         if ts is not None:
             kind, index, total = position_of(ts.state_json)
             out["step"] = {"kind": kind, "index": index, "total": total}
@@ -238,10 +249,11 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
 
 def _learned(s: Any, participant: ParticipantRow) -> list[dict[str, Any]]:
     """The debriefing: what the robot believes each task is, once the participant has finished."""
-    space = get_domain("dinner").clause_space
     out = []
     for ts in repo.task_sessions_of(s, participant_id=participant.id):
-        b = core.belief(session_of(ts.state_json))
+        session = session_of(ts.state_json)
+        space = get_domain(session.config.task).clause_space
+        b = core.belief(session)
         out.append({"task_index": ts.task_index, "map_formula": space.text_of(b.map_mask),
                     "map_description": space.describe(b.map_mask),
                     "summary": lay_summary(space.clauses_of(b.map_mask))})

@@ -11,7 +11,7 @@ from ..db.tables import StudyRow, utcnow
 from ..errors import Conflict, InvalidFields, NotFound
 from .context import Context, commit, iso
 from .outcomes import OUTCOME_CODE_FIELDS
-from .study_definition import ProblemList, TaskIn, describe_formula, validate_study
+from .study_definition import ProblemList, TaskIn, describe_formula, scene_spec, validate_study
 from .instruments import INSTRUMENT_KINDS
 from .page_settings import check_page_settings, page_settings_view
 
@@ -80,19 +80,20 @@ DEMO_QUESTIONNAIRE = [
 ]
 
 
-def _task_values(tasks: list[TaskIn]) -> list[dict[str, Any]]:
-    """The tasks as stored: named tasks' fixed formulas, custom formulas in canonical form, names and instructions."""
+def _task_values(tasks: list[TaskIn], objects: list[str] | None = None) -> list[dict[str, Any]]:
+    """The tasks as stored: named tasks' fixed formulas, custom formulas in canonical form (over the study's own
+    objects, if it has them), names and instructions."""
     out = []
     for i, task in enumerate(tasks):
         formula = TASK_FORMULAS.get(task.key) or task.ground_truth or None
         if task.key == "custom" and formula:
-            formula = describe_formula(formula)["formula"]
+            formula = describe_formula(formula, objects)["formula"]
         out.append({
             "key": task.key,
             "ground_truth": formula,
             "name": task.name or TASK_NAMES.get(task.key, f"Task {i + 1}"),
             "instructions": task.instructions or TASK_INSTRUCTIONS.get(task.key)
-            or ("" if formula is None else describe_formula(formula)["description"]),
+            or ("" if formula is None else describe_formula(formula, objects)["description"]),
         })
     return out
 
@@ -100,9 +101,11 @@ def _task_values(tasks: list[TaskIn]) -> list[dict[str, Any]]:
 def _study_values(spec: dict[str, Any]) -> dict[str, Any]:
     """Validated column values of a new study; InvalidFields lists every unacceptable field at once."""
     d = validate_study(spec)
+    objects = None if not d.objects else scene_spec([o.model_dump() for o in d.objects]).to_json()
     return {
         "name": d.name or "Untitled study",
-        "tasks": _task_values(d.tasks),
+        "objects": objects,
+        "tasks": _task_values(d.tasks, None if objects is None else [o["name"] for o in objects]),
         "conditions": list(d.conditions),
         "assignment": d.assignment,
         "n_practice": d.n_practice, "n_demonstrations": d.n_demonstrations, "n_queries": d.n_queries,
@@ -155,6 +158,7 @@ def study_view(study: StudyRow) -> dict[str, Any]:
         "quiz_max_attempts": study.quiz_max_attempts, "timeout_minutes": study.timeout_minutes,
         "robot_speed": study.robot_speed, "flip_rate": float(study.flip_rate or 0.0),
         "places": study.places, "archived_at": iso(study.archived_at),
+        **({"objects": study.objects} if study.objects else {}),  # the dinner table's studies read as before
         **page_settings_view(study),
         "created_at": iso(study.created_at), "updated_at": iso(study.updated_at),
     }
@@ -174,7 +178,8 @@ def create_study(ctx: Context, spec: dict[str, Any], *, study_id: str | None = N
 
 def editable_spec(study: dict[str, Any]) -> dict[str, Any]:
     """A stored study (study_view) as the specification that would create it again."""
-    spec = {k: v for k, v in study.items() if k not in ("id", "status", "created_at", "updated_at", "archived_at")}
+    spec = {k: v for k, v in study.items() if k not in ("id", "status", "created_at", "updated_at", "archived_at")
+            and not (k == "objects" and v is None)}
     spec["tasks"] = [{k: v for k, v in t.items() if not (k == "ground_truth" and t["key"] in TASK_FORMULAS)}
                      for t in study["tasks"]]
     return spec

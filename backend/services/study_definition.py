@@ -12,20 +12,27 @@ from collections.abc import Iterator
 import re
 from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
+from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError, field_validator
 
 from ..core import session as core
 from ..core.belief import MAX_FLIP_RATE
-from ..core.domain import DINNER_OBJECTS, DINNER_TASK_FORMULAS, get_domain
+from ..core.domain import DINNER_OBJECTS, DINNER_TASK_FORMULAS, get_domain, objects_task
 from ..core.ltl import to_text
 from ..core.priors import NAMED_PRIORS
 from ..core.puns import CRITERIA
 from ..errors import InvalidFields, InvalidInput
+from ..scenes import layout as scene_layout
+from ..scenes.spec import (COLOUR_PATTERN, DEFAULT_SIZES, MAX_OBJECTS, MIN_OBJECTS, NAME_PATTERN, SHAPES, SIZE_MEANING,
+                           SIZE_RANGES, SceneSpec, name_problem)
 from .instruments import INSTRUMENTS, instrument_fields
 from .page_settings import ConsentFormIn, check_page_settings
 from .plain_words import field_errors, number_ranges, shown
 
 MAX_BALANCED_TASKS = 5  # 5! = 120 orders, each crossed with every condition
+# A study's learner enumerates every formula (core.hypotheses): 513,024 for five objects, 16.6 million for six. Past
+# five, only the command line's exact learner answers (core.exact); the study server's per-step views need the
+# enumerated belief (top formulas, what-if, consistency), so a study takes at most this many objects for now.
+MAX_STUDY_OBJECTS = 5
 MAX_PLACES = 100_000  # participants a study may take
 CODE_PATTERN = r"^[A-Za-z0-9_\-]+$"
 ID_PATTERN = r"^[A-Za-z0-9_\-]+$"
@@ -41,6 +48,8 @@ PATTERN_HINTS = {
     "formula": (f"template clauses F(p), G(!p) or (!b U a) over {', '.join(DINNER_OBJECTS)}, joined by &, "
                 "e.g. F(bowl) & (!fork U knife)"),
     "quiz.*.options.*": "some text",
+    "objects.*.name": "lower-case letters, digits and _, starting with a letter (e.g. lunch_box)",
+    "objects.*.colour": "a colour as #rrggbb, e.g. #3366cc",
     "questionnaire.*.id": "letters, digits, - or _",
     "quiz.*.id": "letters, digits, - or _",
 }
@@ -74,10 +83,10 @@ def Code(meaning: str) -> Any:  # noqa: N802 (a Field factory, named like the ty
     return Field(None, min_length=1, max_length=64, pattern=CODE_PATTERN, description=f"code for those who {meaning}")
 
 
-def formula_pattern() -> str:
-    """A regular expression of the formulas a custom task takes: template clauses of the dinner task joined by &
-    (or true, no clause at all)."""
-    space = get_domain("dinner").clause_space
+def formula_pattern(task: str = "dinner") -> str:
+    """A regular expression of the formulas a custom task takes: template clauses of the task joined by & (or true,
+    no clause at all)."""
+    space = get_domain(task).clause_space
     clauses = sorted((re.escape(to_text(c.formula())).replace(r"\ ", r"\s+") for c in space.clauses), key=len,
                      reverse=True)
     one = "(?:" + "|".join(clauses) + ")"
@@ -85,6 +94,10 @@ def formula_pattern() -> str:
 
 
 FORMULA_PATTERN = formula_pattern()
+# Template clauses over any object names: what a custom task's formula looks like in a study with its own objects.
+_NAME = r"[a-z][a-z0-9_]*"
+_CLAUSE = rf"(?:G\(\s*!\s*{_NAME}\s*\)|F\(\s*{_NAME}\s*\)|\(\s*!\s*{_NAME}\s+U\s+{_NAME}\s*\))"
+ANY_OBJECTS_FORMULA_PATTERN = rf"^\s*(?:true|{_CLAUSE}(?:\s*&\s*{_CLAUSE})*)\s*$"
 
 
 def when(condition: dict[str, Any], then: dict[str, Any]) -> dict[str, Any]:
@@ -93,14 +106,54 @@ def when(condition: dict[str, Any], then: dict[str, Any]) -> dict[str, Any]:
 
 
 def _task_rules() -> list[dict[str, Any]]:
-    """What the hand-written rules below say about a task, in JSON Schema (so the schema is the validator)."""
+    """What the hand-written rules below say about a task, in JSON Schema (so the schema is the validator); a custom
+    task's formula over the dinner objects is the study's rule (_study_rules), as its objects decide it."""
     named = [when({"key": {"const": key}}, {"properties": {"ground_truth": {"enum": [None, "", formula]}}})
              for key, formula in DINNER_TASK_FORMULAS.items()]
     return [*named,
-            when({"key": {"const": "custom"}}, {"properties": {"ground_truth": {"type": "string",
-                                                                                "pattern": FORMULA_PATTERN}},
-                                                 "required": ["ground_truth"]}),
+            when({"key": {"const": "custom"}}, {"properties": {"ground_truth": {
+                "type": "string", "pattern": ANY_OBJECTS_FORMULA_PATTERN}}, "required": ["ground_truth"]}),
             when({"key": {"const": "none"}}, {"properties": {"ground_truth": {"enum": [None, ""]}}})]
+
+
+def _study_rules() -> list[dict[str, Any]]:
+    """The study-wide rules in JSON Schema: balanced orders' limit; with the dinner objects a custom formula names
+    them; with the study's own objects only custom and none tasks (the paper's two are the dinner table's)."""
+    dinner = {"anyOf": [{"not": {"required": ["objects"]}},
+                        {"properties": {"objects": {"type": "null"}}, "required": ["objects"]}]}
+    own = {"properties": {"objects": {"type": "array"}}, "required": ["objects"]}
+    dinner_formula = when({"key": {"const": "custom"}}, {"properties": {"ground_truth": {"pattern": FORMULA_PATTERN}}})
+    return [when({"task_order": {"const": "balanced"}}, {"properties": {"tasks": {"maxItems": MAX_BALANCED_TASKS}}}),
+            {"if": dinner, "then": {"properties": {"tasks": {"items": dinner_formula}}}},
+            {"if": own, "then": {"properties": {"tasks": {"items": {"properties": {
+                "key": {"enum": ["custom", "none"]}}}}}}}]
+
+
+def _object_rules() -> list[dict[str, Any]]:
+    """Each shape's size range, in JSON Schema."""
+    return [when({"shape": {"const": shape}}, {"properties": {"size": {"anyOf": [
+        {"type": "null"}, {"type": "number", "minimum": low, "maximum": high}]}}})
+        for shape, (low, high) in SIZE_RANGES.items()]
+
+
+class SlotIn(Definition):
+    """Where an object goes on Table B, as the goal picture shows the table from above (the robot at the top)."""
+
+    x: float = Field(ge=-24, le=24, description="centimetres right of Table B's centre")
+    y: float = Field(ge=-22, le=22, description="centimetres from Table B's centre towards the robot")
+
+
+class ObjectIn(Definition):
+    """One of a study's own objects: its name (also its proposition), shape, colour, size and goal slot."""
+
+    model_config = ConfigDict(json_schema_extra={"allOf": _object_rules()})  # type: ignore[dict-item]
+
+    name: str = Field(min_length=1, max_length=32, pattern=NAME_PATTERN, description="e.g. lunch_box")
+    shape: Literal[SHAPES] = Field(description="how it looks and how the robot holds it")  # type: ignore[valid-type]
+    colour: str = Field("#888888", pattern=COLOUR_PATTERN, description="#rrggbb")
+    size: float | None = Field(None, gt=0, description="centimetres: a plate's, bowl's, cup's or glass's diameter, "
+                               "a utensil's length, a box's side; each shape has its range (empty: a typical size)")
+    slot: SlotIn
 
 
 class TaskIn(Definition):
@@ -151,8 +204,7 @@ class QuizItemIn(Definition):
 class StudyIn(Definition):
     """A study definition: what creates a study (and what GET /studies/{id}/spec gives back)."""
 
-    model_config = ConfigDict(json_schema_extra=when(
-        {"task_order": {"const": "balanced"}}, {"properties": {"tasks": {"maxItems": MAX_BALANCED_TASKS}}}))
+    model_config = ConfigDict(json_schema_extra={"allOf": _study_rules()})  # type: ignore[dict-item]
 
     name: str = Field("Untitled study", max_length=200)
     tasks: list[TaskIn] = Field(min_length=1, max_length=10)
@@ -192,15 +244,24 @@ class StudyIn(Definition):
                              "it assumes each verdict is wrong (0: the authors' learner, every verdict certain)")
     places: int | None = Field(None, ge=1, le=MAX_PLACES, description="participants the study takes, counted as "
                                "Prolific does (finished plus under way); then joining answers 409 (empty: no limit)")
+    objects: list[ObjectIn] | None = Field(None, min_length=MIN_OBJECTS, max_length=MAX_OBJECTS, description=(
+        "the study's own objects and goal layout (empty: the paper's dinner table); their names are the "
+        f"propositions of its tasks' formulas; at most {MAX_STUDY_OBJECTS} for now"))
 
 
 STUDY_FIELDS = tuple(StudyIn.model_fields)
 STUDY_RANGES = number_ranges(StudyIn)
 
 
-def describe_formula(formula: str) -> dict[str, str]:
-    """A custom task's formula in canonical form and in plain words; InvalidInput says what is wrong with it."""
-    space = get_domain("dinner").clause_space
+def study_task(objects: list[str] | tuple[str, ...] | None) -> str:
+    """The learner's task of a study: its own objects (core.domain.objects_task), or the dinner table."""
+    return "dinner" if not objects else objects_task(tuple(objects))
+
+
+def describe_formula(formula: str, objects: list[str] | tuple[str, ...] | None = None) -> dict[str, str]:
+    """A custom task's formula in canonical form and in plain words (over the study's objects, else the dinner
+    table's); InvalidInput says what is wrong with it."""
+    space = get_domain(study_task(objects)).clause_space
     try:
         mask = space.mask_of_formula(formula)
     except ValueError as exc:
@@ -214,26 +275,107 @@ def _dicts(items: Any) -> Iterator[tuple[int, dict[str, Any]]]:
             yield i, item
 
 
+def _object_names(spec: dict[str, Any]) -> tuple[str, ...] | None:
+    """The study's own object names if its objects are well-formed and distinct (None: the dinner table, or objects
+    whose own problems are reported instead)."""
+    objects = spec.get("objects")
+    if not isinstance(objects, list) or not objects:
+        return None
+    names = tuple(o.get("name") for o in objects if isinstance(o, dict) and isinstance(o.get("name"), str))
+    if len(names) != len(objects) or len(set(names)) != len(names) or not MIN_OBJECTS <= len(names) <= MAX_OBJECTS \
+            or not all(isinstance(n, str) and name_problem(n) is None for n in names):
+        return None
+    return names  # type: ignore[return-value]
+
+
+def _example(names: tuple[str, ...]) -> str:
+    return f"F({names[0]}) & (!{names[-1]} U {names[0]})"
+
+
 def _task_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
+    names = _object_names(spec)
+    own = isinstance(spec.get("objects"), list) and bool(spec.get("objects"))
+    objects = names or DINNER_OBJECTS
+    example = _example(names) if names else "F(bowl) & (!fork U knife)"
+    hint = f"template clauses F(p), G(!p) or (!b U a) over {', '.join(objects)}, joined by &, e.g. {example}"
     for i, task in _dicts(spec.get("tasks")):
         key, formula = task.get("key"), task.get("ground_truth") or None
         if not isinstance(key, str) or not isinstance(formula, (str, type(None))):
             continue  # the model names a key or formula of the wrong kind
         where = f"tasks.{i}.ground_truth"
-        if key in DINNER_TASK_FORMULAS and formula and formula != DINNER_TASK_FORMULAS[key]:
+        if own and key in DINNER_TASK_FORMULAS:
+            yield f"tasks.{i}.key", (f"{key} is the dinner table's task; a study with its own objects has custom tasks "
+                                     "(a formula over its objects) or none")
+        elif key in DINNER_TASK_FORMULAS and formula and formula != DINNER_TASK_FORMULAS[key]:
             yield where, f"{key} has a fixed ground truth; leave this empty"
         elif key == "custom" and not formula:
-            yield where, (f"a custom task needs a formula over {', '.join(DINNER_OBJECTS)}, e.g. F(bowl) & "
-                          "(!fork U knife)")
-        elif key == "custom" and formula is not None and not re.match(FORMULA_PATTERN, formula):
-            yield where, f"must be {PATTERN_HINTS['tasks.*.ground_truth']}, got {shown(formula)}"
+            yield where, f"a custom task needs a formula over {', '.join(objects)}, e.g. {example}"
+        elif key == "custom" and formula is not None and own and (names is None or len(names) > MAX_STUDY_OBJECTS):
+            continue  # the objects' own problems come first
+        elif key == "custom" and formula is not None and not re.match(formula_pattern(study_task(names)), formula):
+            yield where, f"must be {hint}, got {shown(formula)}{_unknown_objects(formula, objects)}"
         elif key == "custom" and formula is not None:
             try:
-                describe_formula(formula)
+                describe_formula(formula, names)
             except InvalidInput as exc:
                 yield where, exc.message.removeprefix("ground_truth: ")
         elif key == "none" and formula:
             yield where, "the key 'none' means the ground truth is unknown; choose 'custom' to give a formula"
+
+
+def _unknown_objects(formula: str, objects: tuple[str, ...]) -> str:
+    """'; it names ..., which the study does not have' for a formula over objects the study lacks (else '')."""
+    named = set(re.findall(r"[a-z][a-z0-9_]*", formula)) - {"true", "false"}
+    unknown = sorted(named - set(objects))
+    if not unknown:
+        return ""
+    return f"; it names {', '.join(unknown)}, which {'is not an object' if len(unknown) == 1 else 'are not objects'} " \
+        "of this study"
+
+
+def _object_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
+    """Each object's size within its shape's range, names a formula can use, and the scene: distinct names, slots on
+    Table B clear of each other and within the arm's reach, room for every object on Table A."""
+    objects = spec.get("objects")
+    if not isinstance(objects, list) or not objects:
+        return
+    if len(objects) > MAX_STUDY_OBJECTS and len(objects) <= MAX_OBJECTS:
+        yield "objects", (f"{len(objects)} objects given; a study takes at most {MAX_STUDY_OBJECTS} for now (its "
+                          "learner enumerates every task formula; past five, `tableteach infer --objects` answers, but "
+                          "not yet the study server)")
+    valid = True
+    seen: dict[str, int] = {}
+    for i, o in _dicts(objects):
+        name, shape, size = o.get("name"), o.get("shape"), o.get("size")
+        if isinstance(name, str) and name in seen:
+            yield f"objects.{i}.name", (f"{name!r} is already the name of object {seen[name] + 1}; each object needs "
+                                        "its own name")
+            valid = False
+        if isinstance(name, str):
+            seen.setdefault(name, i)
+        if isinstance(name, str) and re.match(NAME_PATTERN, name) and name_problem(name):
+            yield f"objects.{i}.name", name_problem(name) or ""
+            valid = False
+        if isinstance(shape, str) and shape in SIZE_RANGES and isinstance(size, (int, float)) \
+                and not isinstance(size, bool):
+            low, high = SIZE_RANGES[shape]
+            if not low <= size <= high:
+                yield f"objects.{i}.size", (f"a {shape}'s {SIZE_MEANING[shape]} must be {low:g} to {high:g} cm, "
+                                            f"got {size:g}")
+                valid = False
+    if not valid:
+        return
+    try:
+        model = TypeAdapter(list[ObjectIn]).validate_python(objects)
+    except ValidationError:
+        return  # the model names the fields
+    scene = scene_spec([o.model_dump() for o in model])
+    yield from scene_layout.scene_problems(scene)
+
+
+def scene_spec(objects: list[dict[str, Any]]) -> SceneSpec:
+    """The scene specification of validated objects (a missing size is the shape's typical one)."""
+    return SceneSpec.from_json([{**o, "size": o.get("size") or DEFAULT_SIZES[o["shape"]]} for o in objects])
 
 
 def _item_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
@@ -265,6 +407,7 @@ def _study_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
     if spec.get("task_order") == "balanced" and isinstance(tasks, list) and len(tasks) > MAX_BALANCED_TASKS:
         yield "task_order", (f"balanced uses every order of the tasks; at most {MAX_BALANCED_TASKS} tasks "
                              f"({len(tasks)} given): use random instead")
+    yield from _object_problems(spec)
     yield from _task_problems(spec)
     yield from _item_problems(spec)
     problems = ProblemList()

@@ -5,7 +5,7 @@ from __future__ import annotations
 from typing import Any
 
 from ..core import session as core
-from ..core.domain import DINNER_OBJECTS, get_domain
+from ..core.domain import get_domain
 from ..db import repository as repo
 from ..db.tables import TaskSessionRow, utcnow
 from ..errors import Conflict, InvalidInput
@@ -14,6 +14,7 @@ from . import executions, placements
 from .context import Context
 from .outcomes import code_to_show, outcome_of
 from .planning import ROBOT_TURNS, session_of
+from .study_objects import study_objects
 from .runtime import FINISH_EXECUTION, WORK_OUT
 from .state import (
     Action,
@@ -65,8 +66,9 @@ def place_object(ctx: Context, token: str, *, obj: str, expect: Expect, key: str
     labels follow: services.placements)."""
     def run(a: Action) -> None:
         ts, _state_, step = _teaching(a, expect, ("practice", "demonstration"))
-        if obj not in DINNER_OBJECTS:
-            raise InvalidInput(f"unknown object {obj!r}; expected one of {', '.join(DINNER_OBJECTS)}")
+        objects = study_objects(a.study)
+        if obj not in objects:
+            raise InvalidInput(f"object: {obj!r} is not an object of this study; expected one of {', '.join(objects)}")
         if obj in ts.demo_placed:
             raise Conflict(f"the {obj} is already on the table; a placed object cannot be placed again")
         try:
@@ -86,7 +88,7 @@ def finish_demonstration(ctx: Context, token: str, *, expect: Expect, key: str |
         if not placements.settled(ts):
             raise Conflict("the robot has not reported the table after every placement yet; try again in a moment")
         # Nothing placed: the trace is the cleared table alone (no robot was asked, so none has reported it).
-        trace = [list(labels) for labels in ts.demo_trace] or [sorted(get_domain("dinner").labels(()))]
+        trace = [list(labels) for labels in ts.demo_trace] or [sorted(get_domain(state.config.task).labels(()))]
         new_state = core.observe(state, step.kind, trace)
         a.log("demonstration", {"placed": list(ts.demo_placed), "trace": trace},
               task_index=ts.task_index, step_kind=step.kind, step_index=step.index)

@@ -41,7 +41,6 @@ def _learner_view(learner: LearnerSpec, study_prior: str, study_flip_rate: float
 def what_if(ctx: Context, study_id: str, participant_id: int, learners: Sequence[str] = ()) -> dict[str, Any]:
     """Per task the participant started: each learner's similarity, entropy and MAP formula after every step."""
     specs = learners_of(learners)
-    space = get_domain("dinner").clause_space
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         participant = study_participant(s, study_id, participant_id)
@@ -50,6 +49,7 @@ def what_if(ctx: Context, study_id: str, participant_id: int, learners: Sequence
     tasks = []
     for task_index, state_json in stored:
         state = session_of(state_json)
+        space = get_domain(state.config.task).clause_space
         task = tasks_def[task_index]
         truth_text = task.get("ground_truth")
         truth = None if truth_text is None else space.mask_of_formula(truth_text)

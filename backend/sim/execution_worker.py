@@ -18,6 +18,7 @@ from typing import Any
 
 from .clips import ClipCache, clip_folder
 from .recordings import RecordingId
+from .scene import SCENE_XML
 from .work_out import StudioSource, work_out_execution
 
 log = logging.getLogger("tableteach.sim.execution_worker")
@@ -29,8 +30,9 @@ def answer(studio: StudioSource, request: dict[str, Any], clips: ClipCache | Non
     """The plan for one request, as JSON-ready data."""
     if clips is not None:
         clips.folder = clip_folder(request["data_dir"])  # the server's clips, on its data folder
+    scene = Path(request["scene"]) if request.get("scene") else SCENE_XML  # a study's own objects, or the dinner
     plan = work_out_execution(studio, Path(request["data_dir"]), int(request["seed"]), list(request["events"]),
-                              RecordingId.parse(request["recording"]), float(request["rate"]), clips)
+                              RecordingId.parse(request["recording"]), float(request["rate"]), clips, scene)
     return {"ok": True, "events": list(plan.events), "trace": [sorted(labels) for labels in plan.trace],
             "action_ends": list(plan.action_ends), "viewable": plan.viewable}
 

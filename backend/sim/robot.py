@@ -28,16 +28,20 @@ from pathlib import Path
 
 import numpy as np
 
+import mujoco
+
 from ..core.clauses import humanize
 from ..recording_store import RecordingId
 from ..robot import ExecutionPlan, RobotActivity, ViewAddress
-from .clips import CLIP_CACHE_BYTES, ClipCache, clip_folder, warm
+from ..scenes.spec import SceneSpec
+from .clips import CACHE_FOLDER, CLIP_CACHE_BYTES, ClipCache, clip_folder, warm
 from .motion_file import viser_path
 from .physics import MujocoWorld
 from .recording import Recording
 from .recordings import SavedRecording, save_recording
+from .scene import SCENE_XML, scene_layout
+from .scene_mjcf import SCENE_FOLDER, scene_path
 from .view_hub import ViewHub
-from .world import OBJECTS
 from .work_out import StudioSource, known_execution, work_out_execution
 from .worker_pool import ExecutionWorkers, WorkerFailed
 
@@ -82,8 +86,9 @@ class _Table:
     while the table is in use: a view needs none, and an idle table's world is dropped (rebuilt on its next use
     from the stored placements)."""
 
-    def __init__(self, key: str) -> None:
+    def __init__(self, key: str, scene: Path) -> None:
         self.key = key
+        self.scene = scene  # the dinner scene, or one generated from the study's objects
         self.seed = table_seed(key)
         self._world: MujocoWorld | None = None
         self.last_used = time.monotonic()
@@ -100,7 +105,7 @@ class _Table:
         """The table's simulation, made on first use (caller holds lock)."""
         self.last_used = time.monotonic()
         if self._world is None:
-            self._world = MujocoWorld(self.seed)
+            self._world = MujocoWorld(self.seed, self.scene)
         return self._world
 
     @property
@@ -140,8 +145,9 @@ class MujocoRobot:
         self.speed = speed
         self.data_dir = Path(data_dir)
         self.idle_seconds = idle_seconds
-        self._scratch: MujocoWorld | None = None  # start poses of tables that have no world (first views)
+        self._scratch: dict[Path, MujocoWorld] = {}  # start poses of tables that have no world (first views)
         self._tables: dict[str, _Table] = {}
+        self._scenes: dict[str, Path] = {}  # each key's scene, once asked (scene_of)
         self._lock = threading.Lock()
         self._studio = StudioSource()  # executions worked out in this process (workers == 0)
         self.clips = ClipCache(clip_bytes, clip_folder(self.data_dir))  # placements simulated once, by any process
@@ -152,6 +158,7 @@ class MujocoRobot:
         self._animate = threading.Event()
         self._closing = threading.Event()
         self.on_change: Callable[[str], None] | None = None  # told a table's key when its activity changes
+        self.scene_of: Callable[[str], SceneSpec | None] | None = None  # a key's own objects (None: the dinner)
 
     # -- life --------------------------------------------------------------------------------------
     def start(self) -> None:
@@ -262,15 +269,16 @@ class MujocoRobot:
             return known
         rate = self.speed * speed
         seed = table_seed(key)
-        worked = known_execution(self.data_dir, seed, events, rid, rate)  # no worker woken for a shared motion
+        scene = self._scene(key)
+        worked = known_execution(self.data_dir, seed, events, rid, rate, scene)  # no worker woken for a shared motion
         if worked is None and self._workers is not None:
             try:
-                worked = self._workers.run(self.data_dir, seed, events, rid, rate)
+                worked = self._workers.run(self.data_dir, seed, events, rid, rate, scene)
             except WorkerFailed:  # e.g. no process can be started: slower here, but the participant carries on
                 log.warning("the robot workers failed on %s; working it out in the server process", rid.name,
                             exc_info=True)
         if worked is None:
-            worked = work_out_execution(self._studio, self.data_dir, seed, events, rid, rate, self.clips)
+            worked = work_out_execution(self._studio, self.data_dir, seed, events, rid, rate, self.clips, scene)
         with self._lock:
             if len(self._plans) >= 1024:
                 self._plans.pop(next(iter(self._plans)))
@@ -306,6 +314,7 @@ class MujocoRobot:
         """Forget the table (its browsers keep their scene until they leave or reload)."""
         with self._lock:
             table = self._tables.pop(key, None)
+            self._scenes.pop(key, None)
             hub = self._hub
         if hub is not None:
             hub.drop(key)
@@ -405,31 +414,34 @@ class MujocoRobot:
         hub = self._hub
         return 0 if hub is None else hub.watchers(key)
 
-    def _joined(self, key: str) -> tuple[Sequence[str], np.ndarray, str, frozenset[str]] | None:
-        """What a browser joining this table is shown first: the table as it is now (motions under way skipped)."""
+    def _joined(self, key: str) -> tuple[Sequence[str], np.ndarray, str, frozenset[str], mujoco.MjModel] | None:
+        """What a browser joining this table is shown first: the table as it is now (motions under way skipped), and
+        the model whose moving bodies it shows."""
         table = self._table(key)
         with table.lock:
             if table.has_world:
-                return table.world.bodies, table.world.body_poses(), table.caption, self._clickable(table)
-            bodies, poses = self._start_poses(table.seed)
-            return bodies, poses, table.caption, self._clickable(table)
+                world = table.world
+                return world.bodies, world.body_poses(), table.caption, self._clickable(table), world.model
+            bodies, poses, model = self._start_poses(table.seed, table.scene)
+            return bodies, poses, table.caption, self._clickable(table), model
 
     def _show_start(self, table: _Table) -> None:
         """Show the browsers of a table without a world its cleared state."""
         hub = self._hub
         if hub is not None and hub.watchers(table.key):
-            bodies, poses = self._start_poses(table.seed)
+            bodies, poses, _model = self._start_poses(table.seed, table.scene)
             hub.show(table.key, bodies, poses)
             hub.set_caption(table.key, "")
 
-    def _start_poses(self, seed: int) -> tuple[Sequence[str], np.ndarray]:
-        """A cleared table's poses for this seed, from the robot's one scratch world (no world per view)."""
+    def _start_poses(self, seed: int, scene: Path) -> tuple[Sequence[str], np.ndarray, mujoco.MjModel]:
+        """A cleared table's poses for this seed, from the robot's scratch world of the scene (no world per view)."""
         with self._lock:
-            if self._scratch is None:
-                self._scratch = MujocoWorld(seed)
+            scratch = self._scratch.get(scene)
+            if scratch is None:
+                scratch = self._scratch[scene] = MujocoWorld(seed, scene)
             else:
-                self._scratch.reset(seed)
-            return self._scratch.bodies, self._scratch.body_poses()
+                scratch.reset(seed)
+            return scratch.bodies, scratch.body_poses(), scratch.model
 
     def _get(self, key: str) -> _Table | None:
         with self._lock:
@@ -438,9 +450,23 @@ class MujocoRobot:
     def _table(self, key: str) -> _Table:
         with self._lock:
             table = self._tables.get(key)
-            if table is None:
-                table = self._tables[key] = _Table(key)
+        if table is not None:
             return table
+        scene = self._scene(key)  # may read the database: outside the robot's lock
+        with self._lock:
+            return self._tables.setdefault(key, _Table(key, scene))
+
+    def _scene(self, key: str) -> Path:
+        """The key's scene file: the dinner table, or the one generated from its study's objects (asked once)."""
+        with self._lock:
+            known = self._scenes.get(key)
+        if known is not None:
+            return known
+        spec = None if self.scene_of is None else self.scene_of(key)
+        scene = SCENE_XML if spec is None else scene_path(spec, self.data_dir / CACHE_FOLDER / SCENE_FOLDER)
+        with self._lock:
+            self._scenes[key] = scene
+        return scene
 
     def _clear(self, table: _Table) -> None:
         """Reset the world and the table's bookkeeping (caller holds table.lock)."""
@@ -461,7 +487,7 @@ class MujocoRobot:
         if table.on_click is None or table.pending or table.clicking:
             return frozenset()
         placed = set(table.world.placed) if table.has_world and table.active else set()
-        return frozenset(o for o in OBJECTS if o not in placed)
+        return frozenset(o for o in scene_layout(table.scene).objects if o not in placed)
 
     def _refresh(self, table: _Table) -> None:
         """Make exactly the objects a participant may click now clickable."""

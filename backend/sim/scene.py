@@ -1,4 +1,5 @@
-"""Load the dinner-table MJCF and read the names, slots, grasps and arm geometry the robot relies on."""
+"""Load a table scene's MJCF (the dinner table, or one generated from a study's objects: scene_mjcf.py) and read the
+names, slots, grasps and arm geometry the robot relies on."""
 
 from __future__ import annotations
 
@@ -16,6 +17,7 @@ from .world import OBJECTS
 SCENE_XML = Path(__file__).resolve().parents[2] / "sim_assets" / "dinner_table" / "scene.xml"
 ARM_JOINTS = ("base_yaw", "shoulder", "elbow", "wrist_pitch", "wrist_roll")
 FINGER_JOINTS = ("finger_left", "finger_right")
+OBJECTS_TEXT = "tableteach_objects"  # a generated scene's custom text: its object names, space-separated
 
 
 @dataclass(frozen=True)
@@ -91,16 +93,26 @@ def _arm_geometry(model: mujoco.MjModel) -> ArmGeometry:
     )
 
 
+def scene_objects(model: mujoco.MjModel) -> tuple[str, ...]:
+    """The scene's object names: those its custom text lists (a generated scene), else the dinner objects."""
+    text = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_TEXT, OBJECTS_TEXT)
+    if text < 0:
+        return OBJECTS
+    start, size = int(model.text_adr[text]), int(model.text_size[text])
+    return tuple(bytes(model.text_data[start : start + size]).rstrip(b"\0").decode().split())
+
+
 def read_layout(model: mujoco.MjModel) -> Layout:
     """Read the conventions documented at the top of scene.xml; raise if the model breaks them."""
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    missing = [o for o in OBJECTS if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, o) < 0]
+    objects = scene_objects(model)
+    missing = [o for o in objects if mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, o) < 0]
     if missing:
-        raise ValueError(f"scene lacks object bodies {missing}: expected one body per object in {OBJECTS}")
-    body = {o: model.body(o).id for o in OBJECTS}
+        raise ValueError(f"scene lacks object bodies {missing}: expected one body per object in {objects}")
+    body = {o: model.body(o).id for o in objects}
     grasp, slot, bottom = {}, {}, {}
-    for o in OBJECTS:
+    for o in objects:
         site = model.site(f"grasp_{o}")
         # The site's y axis is the finger-closing direction.
         yaw = _yaw(site.quat) + np.pi / 2
@@ -109,11 +121,11 @@ def read_layout(model: mujoco.MjModel) -> Layout:
         slot[o] = Slot(pos=data.site_xpos[slot_site].copy(), yaw=_yaw(_mat_to_quat(data.site_xmat[slot_site])))
         bottom[o] = _body_z_extent(model, body[o])[0]
     return Layout(
-        objects=OBJECTS,
+        objects=objects,
         body=body,
-        qpos_adr={o: int(model.joint(o).qposadr[0]) for o in OBJECTS},
-        dof_adr={o: int(model.joint(o).dofadr[0]) for o in OBJECTS},
-        weld={o: model.equality(f"grasp_{o}").id for o in OBJECTS},
+        qpos_adr={o: int(model.joint(o).qposadr[0]) for o in objects},
+        dof_adr={o: int(model.joint(o).dofadr[0]) for o in objects},
+        weld={o: model.equality(f"grasp_{o}").id for o in objects},
         grasp=grasp,
         slot=slot,
         bottom=bottom,
@@ -136,6 +148,11 @@ def _mat_to_quat(mat: np.ndarray) -> np.ndarray:
 def _load(path: str) -> tuple[mujoco.MjModel, Layout]:
     model = mujoco.MjModel.from_xml_path(path)
     return model, read_layout(model)
+
+
+def scene_layout(path: Path | str = SCENE_XML) -> Layout:
+    """The scene's layout (shared, read-only), without a copy of its model."""
+    return _load(str(path))[1]
 
 
 def load_scene(path: Path = SCENE_XML) -> tuple[mujoco.MjModel, Layout]:

@@ -1,6 +1,7 @@
-"""The dinner scene seen from above, for the dashboard's replays: the tables, the robot's base, each object's
-footprint, start and slot, and a recorded step's poses thinned to REPLAY_FPS. Reached by the services through
-the recording store (tableteach.recording_store.RecordingStore.layout / top_view), never imported by them."""
+"""A table scene (the dinner table, or one with a study's own objects) seen from above, for the dashboard's replays
+and the participant's 2D view: the tables, the robot's base, each object's footprint, start and slot, and a recorded
+step's poses thinned to REPLAY_FPS. Reached by the services through the recording store
+(tableteach.recording_store.RecordingStore.layout / top_view), never imported by them."""
 
 from __future__ import annotations
 
@@ -10,17 +11,19 @@ from pathlib import Path
 from typing import Any
 
 from ..recording_store import FileRecordingStore, RecordingId
+from ..scenes.spec import SceneSpec
 
 def _quat_yaw(w: float, x: float, y: float, z: float) -> float:
     return math.atan2(2 * (w * z + x * y), 1 - 2 * (y * y + z * z))
 
 
-@lru_cache(maxsize=1)
-def table_layout() -> dict[str, Any]:
-    """The scene seen from above (metres, world frame): both tables, the robot's base, each object's size and poses."""
-    from .scene import load_scene  # imports MuJoCo: only replays need it
+@lru_cache(maxsize=16)
+def table_layout(scene: str | None = None) -> dict[str, Any]:
+    """The scene seen from above (metres, world frame): both tables, the robot's base, each object's size and poses
+    (the dinner scene when `scene` is None)."""
+    from .scene import SCENE_XML, load_scene  # imports MuJoCo: only replays need it
 
-    model, layout = load_scene()
+    model, layout = load_scene(SCENE_XML if scene is None else Path(scene))
     tables = []
     for name, geom in (("Table A", "table_a_top"), ("Table B", "table_b_top")):
         g = model.geom(geom)
@@ -91,14 +94,25 @@ def _recording_view(saved: Any, objects: tuple[str, ...]) -> dict[str, Any]:
 
 
 
+def own_objects_layout(spec: SceneSpec, data_dir: Path | str) -> dict[str, Any]:
+    """The top view of a scene generated from a study's objects, each object with its shape and colour as specified
+    ("shape" keeps the dinner layout's meaning: a disc or a bar from above)."""
+    from .clips import CACHE_FOLDER
+    from .scene_mjcf import SCENE_FOLDER, scene_path
+
+    base = table_layout(str(scene_path(spec, Path(data_dir) / CACHE_FOLDER / SCENE_FOLDER)))
+    objects = {o.name: {**base["objects"][o.name], "kind": o.shape, "colour": o.colour} for o in spec.objects}
+    return {**base, "objects": objects}
+
+
 class SceneRecordingStore(FileRecordingStore):
     """The file recording store with the scene's top view (the composition root's store for the services)."""
 
-    def layout(self) -> dict[str, Any]:
-        """The scene from above (see table_layout)."""
-        return table_layout()
+    def layout(self, scene: SceneSpec | None = None) -> dict[str, Any]:
+        """The scene from above (see table_layout): the dinner table's, or that of a study's own objects."""
+        return table_layout() if scene is None else own_objects_layout(scene, self.data_dir)
 
-    def top_view(self, rid: RecordingId) -> dict[str, Any] | None:
+    def top_view(self, rid: RecordingId, scene: SceneSpec | None = None) -> dict[str, Any] | None:
         """A recorded step's objects and arm from above, or None if the robot saved no recording of it."""
         from .recordings import load_recording  # numpy only
 
@@ -106,7 +120,7 @@ class SceneRecordingStore(FileRecordingStore):
             saved = load_recording(self.data_dir, rid)
         except FileNotFoundError:
             return None
-        return _recording_view(saved, tuple(table_layout()["objects"]))
+        return _recording_view(saved, tuple(self.layout(scene)["objects"]))
 
 
 def scene_store(data_dir: Path | str) -> SceneRecordingStore:

@@ -12,6 +12,7 @@ import mujoco
 import numpy as np
 import viser
 
+from .scene import scene_objects
 from .world import OBJECTS
 
 POSE_EPSILON = 1e-4  # pose change (m or quaternion units) below which a body is not re-sent
@@ -66,6 +67,7 @@ class BodyMirror:
         self.geoms: dict[str, list[Any]] = {}  # viser's clickable handles (no public base type)
         self._last: dict[str, np.ndarray] = {}
         wanted = None if bodies is None else set(bodies)
+        self._objects = frozenset(scene_objects(model))
         for b in range(model.nbody):
             if wanted is None or model.body(b).name in wanted:
                 self._add_body(model, data, b)
@@ -83,7 +85,7 @@ class BodyMirror:
             handle = add_geom(self.scene, model, int(g), f"/{name}/g{g}")
             if handle is not None:
                 self.geoms[name].append(handle)
-        if name in OBJECTS:
+        if name in self._objects:
             add_object_label(self.scene, name)
 
     def set_poses(self, bodies: Sequence[str], poses: np.ndarray) -> int:

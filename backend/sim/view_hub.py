@@ -93,10 +93,11 @@ class ViewHub:
     """The process's viser server; tables are keyed by the robot's key. Thread-safe."""
 
     def __init__(self, model: mujoco.MjModel, *,
-                 on_join: Callable[[str], tuple[Sequence[str], np.ndarray, str, frozenset[str]] | None],
+                 on_join: Callable[[str], tuple[Sequence[str], np.ndarray, str, frozenset[str], mujoco.MjModel] | None],
                  on_click: Callable[[str, str], None], on_leave: Callable[[str], None]) -> None:
         self._model = model
-        self._on_join = on_join  # key -> (bodies, poses, caption, clickable objects) for a new client, or None
+        # key -> (bodies, poses, caption, clickable objects, the table's model) for a new client, or None
+        self._on_join = on_join
         self._on_click = on_click
         self._on_leave = on_leave
         self._moving = moving_bodies(model)
@@ -104,7 +105,7 @@ class ViewHub:
         self._tickets: dict[str, tuple[str, float]] = {}
         self._views: dict[int, ClientView] = {}
         self._server: viser.ViserServer | None = None
-        self._rest: mujoco.MjData | None = None
+        self._rests: dict[int, tuple[mujoco.MjModel, mujoco.MjData]] = {}  # id(model) -> its rest pose
 
     @property
     def started(self) -> bool:
@@ -188,7 +189,6 @@ class ViewHub:
             initial_camera(server, self._model)
             data = mujoco.MjData(self._model)
             mujoco.mj_forward(self._model, data)
-            self._rest = data  # every new view's bodies start here (read only)
             static = [self._model.body(b).name for b in range(self._model.nbody)
                       if self._model.body(b).name not in self._moving]
             BodyMirror(server.scene, self._model, data, static)
@@ -211,12 +211,11 @@ class ViewHub:
         shown = self._on_join(key)
         if shown is None:
             return
-        bodies, poses, caption_text, clickable = shown
-        rest = self._rest
-        if rest is None:  # the server stopped meanwhile
-            return
+        # The shared scene holds what every table has (tables, the robot's pedestal); the client's own scene the
+        # moving bodies of its table's model (the dinner objects, or the study's own).
+        bodies, poses, caption_text, clickable, model = shown
         with client.atomic():
-            mirror = BodyMirror(client.scene, self._model, rest, self._moving)
+            mirror = BodyMirror(client.scene, model, self._rest_of(model), moving_bodies(model))
             mirror.set_poses(bodies, poses)
             caption = add_caption(client.scene)
             caption.text, caption.visible = caption_text, bool(caption_text)
@@ -227,6 +226,16 @@ class ViewHub:
                 return
             self._views[client.client_id] = view
         log.debug("viewer %s joined table %s", client.client_id, key)
+
+    def _rest_of(self, model: mujoco.MjModel) -> mujoco.MjData:
+        """The model's rest pose, made once per scene (every new view's bodies start there; read only)."""
+        with self._lock:
+            entry = self._rests.get(id(model))
+            if entry is None:
+                data = mujoco.MjData(model)
+                mujoco.mj_forward(model, data)
+                entry = self._rests[id(model)] = (model, data)  # the model kept alive: its id stays its own
+            return entry[1]
 
     def _left(self, client: viser.ClientHandle) -> None:
         with self._lock:

@@ -15,6 +15,7 @@ from typing import Any
 
 from ..robot import ExecutionPlan
 from .recordings import RecordingId
+from .scene import SCENE_XML
 
 log = logging.getLogger(__name__)
 
@@ -90,10 +91,14 @@ class ExecutionWorkers:
             self._idle.put(worker)
         self._closed = threading.Event()
 
-    def run(self, data_dir: Path, seed: int, events: Sequence[str], rid: RecordingId, rate: float) -> ExecutionPlan:
-        """The plan a worker worked out (its files saved under data_dir); ValueError for a sequence it refuses."""
-        request = {"data_dir": str(Path(data_dir).resolve()), "seed": seed, "events": list(events),
-                   "recording": rid.name, "rate": rate}
+    def run(self, data_dir: Path, seed: int, events: Sequence[str], rid: RecordingId, rate: float,
+            scene: Path | None = None) -> ExecutionPlan:
+        """The plan a worker worked out (its files saved under data_dir) on `scene` (None: the dinner table);
+        ValueError for a sequence it refuses."""
+        request: dict[str, Any] = {"data_dir": str(Path(data_dir).resolve()), "seed": seed, "events": list(events),
+                                   "recording": rid.name, "rate": rate}
+        if scene is not None and Path(scene) != SCENE_XML:
+            request["scene"] = str(Path(scene).resolve())
         if self._closed.is_set():
             raise WorkerFailed("the robot workers are shut down: expected no new executions")
         worker = self._idle.get()

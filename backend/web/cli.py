@@ -261,7 +261,8 @@ def register(sub: argparse._SubParsersAction) -> None:
     teach.add_argument("--server", required=True, help="server base URL, e.g. http://127.0.0.1:8000")
     teach.add_argument("--study", required=True, help="study id")
     teach.add_argument("--ground-truth", required=True, action="append",
-                       help="the teacher's formula, or task1 / task2; repeat once per task of the study")
+                       help="the teacher's formula over the study's objects (the dinner table's, or its own), or "
+                       "task1 / task2 on the dinner table; repeat once per task of the study")
     teach.add_argument("--noise", type=float, default=0.0, help="probability of a flipped verdict (default 0)")
     teach.add_argument("--demo-mode", choices=list(DEMO_MODES), default=DEFAULT_DEMO_MODE,
                        help=f"how the teacher demonstrates (default {DEFAULT_DEMO_MODE}, the authors' demonstrator)")

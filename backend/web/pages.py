@@ -11,6 +11,7 @@ from fastapi.responses import FileResponse, HTMLResponse, RedirectResponse, Resp
 from pydantic import BaseModel, Field
 
 from .. import services
+from ..services import goal_pictures
 from ..errors import NotAuthenticated
 from .browser import browser_secret, remember_browser
 from .deps import ContextDep, JoinAllowed
@@ -158,6 +159,15 @@ def participant_asset(name: str) -> FileResponse:
 class HealthOut(BaseModel):
     status: Literal["ok"]
     version: str = Field(description="the server's version")
+
+
+@router.get("/study/{study_id}/goal/{task_index}.svg", include_in_schema=False,
+            responses={200: {"content": {"image/svg+xml": {}}}, 404: {"description": "no such study or task"}})
+def goal_picture(study_id: str, task_index: int, ctx: ContextDep) -> Response:
+    """A task's goal picture in a study with its own objects (Table B from above, drawn from its layout)."""
+    svg = goal_pictures.goal_picture(ctx, study_id, task_index)
+    return Response(svg, media_type="image/svg+xml", headers={"Cache-Control": "no-cache",
+                                                             "Content-Security-Policy": "default-src 'none'"})
 
 
 @router.get("/healthz", response_model=HealthOut, responses=error_responses(503))

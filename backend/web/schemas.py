@@ -2,18 +2,20 @@
 
 from __future__ import annotations
 
-from typing import Any, Literal
+from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, field_validator
 
-from ..core.domain import DINNER_OBJECTS
+from ..scenes.spec import NAME_PATTERN
 from ..services.outcomes import OUTCOMES
 # The study definition's model is the services' validator: one set of rules for the API and the services.
 from ..services.study_definition import StudyIn as StudyIn
 from ..services.study_definition import integral
 
 Id = Field(min_length=1, max_length=128, pattern=r"^[A-Za-z0-9_.:\-]+$")
-ObjectName = Literal[DINNER_OBJECTS]  # type: ignore[valid-type]
+# An object of the participant's study: the dinner objects (dinner_plate, small_plate, bowl, knife, fork) or its own.
+ObjectName = Annotated[str, Field(min_length=1, max_length=32, pattern=NAME_PATTERN,
+                                  description="one of the objects the state lists (`objects`)")]
 StepKind = Literal["practice", "demonstration", "query", "test"]
 
 
@@ -99,6 +101,8 @@ class StateTaskOut(BaseModel):
     key: Literal["task1", "task2", "custom", "none"]
     position: int = Field(description="the task's place in this participant's order, from 0")
     required: list[str] = Field(description="objects the task says must end up on the table")
+    goal_picture: str | None = Field(None, description="a study with its own objects: the path of the task's goal "
+                                     "picture (SVG); empty for the dinner table's tasks")
 
 
 class StateStepOut(BaseModel):
@@ -182,6 +186,14 @@ class ProgressOut(BaseModel):
     seconds_left: float | None = Field(None, description="the calibrated estimate of the time left, in seconds")
 
 
+class OwnObjectOut(BaseModel):
+    """One of the study's own objects as the page shows it."""
+
+    name: str
+    shape: str
+    colour: str = Field(description="#rrggbb")
+
+
 class ParticipantState(BaseModel):
     """What a participant sees; every participant action answers with it."""
 
@@ -191,6 +203,8 @@ class ParticipantState(BaseModel):
     stage: Literal["consent", "instructions", "quiz", "task", "questionnaire", "done", "withdrawn", "screened_out"]
     n_events: int
     objects: list[str]
+    own_objects: list[OwnObjectOut] | None = Field(None, description="a study with its own objects: each one's shape "
+                                                   "and colour (empty: the dinner table)")
     consent: ConsentOut
     task: StateTaskOut | None = Field(description="at the task stage")
     step: StateStepOut | None = Field(description="at the task stage")
@@ -212,6 +226,21 @@ class JoinOut(BaseModel):
     state: ParticipantState
 
 
+
+
+class StudySlotOut(BaseModel):
+    x: float = Field(description="centimetres right of Table B's centre")
+    y: float = Field(description="centimetres from Table B's centre towards the robot")
+
+
+class StudyObjectOut(BaseModel):
+    """One of a study's own objects."""
+
+    name: str
+    shape: str
+    colour: str
+    size: float = Field(description="centimetres: diameter, length or side by shape")
+    slot: StudySlotOut
 
 
 class StudyTaskOut(BaseModel):
@@ -278,6 +307,7 @@ class StudyOut(BaseModel):
     consent_form: dict[str, str] = Field(default_factory=dict)
     allow_anonymous: bool = False
     quiz_feedback: bool = True
+    objects: list[StudyObjectOut] | None = Field(None, description="the study's own objects (empty: the dinner table)")
     created_at: str | None
     updated_at: str | None
 

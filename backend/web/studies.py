@@ -6,7 +6,8 @@ from typing import Annotated, Any
 
 from fastapi import APIRouter, Body, Query, Response, status
 from .. import services
-from ..services.study_definition import FORMULA_PATTERN
+from ..services.study_definition import ANY_OBJECTS_FORMULA_PATTERN
+from ..errors import InvalidInput
 from .deps import ActorDep, ContextDep, Experimenter, ParticipantId
 from .schemas import (BeliefOut, ErasureOut, FormulaDescriptionOut, ParticipantBaseOut, ParticipantRowOut,
                       PilotResetOut, StatisticsOut, StudyIn, StudyOut, error_responses)
@@ -144,8 +145,17 @@ def belief(study_id: str, participant_id: ParticipantId, ctx: ContextDep) -> dic
     return services.belief_summary(ctx, study_id, participant_id)
 
 
+OBJECT_LIST_PATTERN = r"^[a-z][a-z0-9_]{0,31}(,[a-z][a-z0-9_]{0,31}){1,9}$"
+
+
 @formulas.get("/describe", response_model=FormulaDescriptionOut)
-def describe_formula(formula: Annotated[str, Query(min_length=1, max_length=2000, pattern=FORMULA_PATTERN,
-                                                   description="e.g. F(bowl) & (!fork U knife)")]) -> dict:
+def describe_formula(formula: Annotated[str, Query(min_length=1, max_length=2000,
+                                                   pattern=ANY_OBJECTS_FORMULA_PATTERN,
+                                                   description="e.g. F(bowl) & (!fork U knife)")],
+                     objects: Annotated[str | None, Query(max_length=400, pattern=OBJECT_LIST_PATTERN, description=(
+                         "a study's own objects, comma-separated (empty: the dinner table's)"))] = None) -> dict:
     """A custom task's ground-truth formula in canonical form and in plain words (422 says what is wrong)."""
-    return services.describe_formula(formula)
+    names = None if not objects else objects.split(",")
+    if names is not None and len(set(names)) != len(names):
+        raise InvalidInput(f"objects: {objects!r} names an object twice; expected distinct names")
+    return services.describe_formula(formula, names)

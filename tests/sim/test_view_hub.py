@@ -30,9 +30,9 @@ def hub() -> Iterator[tuple[ViewHub, list[str], list[str]]]:
     joined: list[str] = []
     left: list[str] = []
 
-    def on_join(key: str) -> tuple[list[str], np.ndarray, str, frozenset[str]] | None:
+    def on_join(key: str) -> tuple[list[str], np.ndarray, str, frozenset[str], object] | None:
         joined.append(key)
-        return [], np.zeros((0, 7)), f"table {key}", frozenset({"bowl"})
+        return [], np.zeros((0, 7)), f"table {key}", frozenset({"bowl"}), model
 
     view_hub = ViewHub(model, on_join=on_join, on_click=lambda key, obj: None, on_leave=left.append)
     try:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import re
 from functools import lru_cache
 
-from ..domain import Domain
+from ..domain import Domain, get_domain, objects_task
 from ..ltl import KEYWORDS
 from .learner import MAX_OBJECTS, MIN_OBJECTS
 
@@ -34,4 +34,4 @@ def parse_objects(text: str) -> tuple[str, ...]:
 @lru_cache(maxsize=16)
 def objects_domain(names: tuple[str, ...]) -> Domain:
     """The task of placing these objects, each at most once, in any order (the dinner table's dynamics)."""
-    return Domain("objects", names, names, names, True, 1.0, "place")
+    return get_domain(objects_task(names))
