@@ -79,6 +79,7 @@ class _Motion:
     caption: str
     segment: Recording
     started: float = 0.0
+    shown: int = -1  # the frame last shown (the animator shows each frame once, however often it wakes)
 
 
 class _Table:
@@ -565,8 +566,10 @@ class MujocoRobot:
             frame = int(np.searchsorted(times, elapsed, side="right")) - 1
             if frame >= len(segment) - 1 or hub is None or hub.watchers(table.key) == 0:
                 frame, ended = len(segment) - 1, True
-            if hub is not None:
-                hub.show(table.key, segment.bodies, segment.poses[max(0, frame)])
+            frame = max(0, frame)
+            if hub is not None and frame != motion.shown:
+                hub.show(table.key, segment.bodies, segment.poses[frame])
+                motion.shown = frame
             if ended:
                 table.pending.popleft()
                 if hub is not None:

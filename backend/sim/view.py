@@ -11,6 +11,7 @@ from collections.abc import Callable, Iterable, Sequence
 import mujoco
 import numpy as np
 import viser
+from viser import _messages as viser_messages
 
 from .scene import scene_objects
 from .world import OBJECTS
@@ -56,6 +57,40 @@ def moving_bodies(model: mujoco.MjModel) -> frozenset[str]:
     return frozenset(model.body(b).name for b in range(model.nbody) if model.body_weldid[b] != 0)
 
 
+def _close(new: list[float], current: np.ndarray) -> bool:
+    """np.allclose(new, current) for a short vector, as viser's setters decide that nothing changed."""
+    return all(abs(a - b) <= 1e-8 + 1e-5 * abs(b) for a, b in zip(new, current.tolist(), strict=True))
+
+
+def fast_pose_writer(frame: viser.FrameHandle) -> Callable[[np.ndarray], None] | None:
+    """A writer of a frame's (x, y, z, qw, qx, qy, qz) that queues viser's two pose messages directly, or None when
+    this viser does not have the private parts it needs (then the public setters are used).
+
+    viser 1.1's pose setters check each value against the last with np.allclose and validate it first: two thirds
+    of the CPU of a moving robot's live view. BodyMirror compares poses itself, all bodies at once, so the writer
+    does what the setters do after their validation: skip a part that is np.allclose to the handle's, else update
+    the handle's array and queue the same message (stamped with the scene's owner by _queue_scene_message).
+    tests/sim/test_view.py fails if the messages differ."""
+    impl = getattr(frame, "_impl", None)
+    api = getattr(impl, "api", None)
+    queue = getattr(api, "_queue_scene_message", None)
+    if impl is None or queue is None or not hasattr(impl, "position") or not hasattr(impl, "wxyz"):
+        return None
+    name = impl.name
+
+    def write(pose: np.ndarray) -> None:
+        values = pose.tolist()
+        position, wxyz = values[:3], values[3:]
+        if not _close(position, impl.position):
+            impl.position[:] = position
+            queue(viser_messages.SetPositionMessage(name, tuple(position)))
+        if not _close(wxyz, impl.wxyz):
+            impl.wxyz[:] = wxyz
+            queue(viser_messages.SetOrientationMessage(name, tuple(wxyz)))
+
+    return write
+
+
 class BodyMirror:
     """MuJoCo bodies mirrored into one viser scene (the server's, shared by all, or one client's own): a frame
     per body, a child primitive per visible geom, and only changed poses pushed."""
@@ -65,21 +100,26 @@ class BodyMirror:
         self.scene = scene
         self.frames: dict[str, viser.FrameHandle] = {}
         self.geoms: dict[str, list[Any]] = {}  # viser's clickable handles (no public base type)
-        self._last: dict[str, np.ndarray] = {}
+        self._rows: dict[str, int] = {}  # body -> its row of _last
+        last: list[np.ndarray] = []
         wanted = None if bodies is None else set(bodies)
         self._objects = frozenset(scene_objects(model))
         for b in range(model.nbody):
             if wanted is None or model.body(b).name in wanted:
-                self._add_body(model, data, b)
-        self._index_cache: dict[tuple[str, ...], list[tuple[int, str]]] = {}
+                last.append(self._add_body(model, data, b))
+        self._last = np.array(last, dtype=float).reshape(len(last), 7)
+        self._names = list(self.frames)
+        self._writers = [fast_pose_writer(self.frames[name]) for name in self._names]
+        self._index_cache: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray]] = {}
 
-    def _add_body(self, model: mujoco.MjModel, data: mujoco.MjData, body: int) -> None:
+    def _add_body(self, model: mujoco.MjModel, data: mujoco.MjData, body: int) -> np.ndarray:
+        """Add one body's frame, geoms and label; its pose now."""
         name = model.body(body).name
         frame = self.scene.add_frame(
             f"/{name}", show_axes=False, position=data.xpos[body].copy(), wxyz=data.xquat[body].copy()
         )
+        self._rows[name] = len(self.frames)
         self.frames[name] = frame
-        self._last[name] = np.concatenate([data.xpos[body], data.xquat[body]])
         self.geoms[name] = []
         for g in np.flatnonzero(model.geom_bodyid == body):
             handle = add_geom(self.scene, model, int(g), f"/{name}/g{g}")
@@ -87,25 +127,34 @@ class BodyMirror:
                 self.geoms[name].append(handle)
         if name in self._objects:
             add_object_label(self.scene, name)
+        return np.concatenate([data.xpos[body], data.xquat[body]])
+
+    def pose_of(self, body: str) -> np.ndarray:
+        """The last pose pushed for a body (x, y, z, qw, qx, qy, qz)."""
+        return self._last[self._rows[body]].copy()
 
     def set_poses(self, bodies: Sequence[str], poses: np.ndarray) -> int:
         """Push (x, y, z, qw, qx, qy, qz) per body this mirror holds, skipping unchanged ones; how many were sent."""
         key = tuple(bodies)
         index = self._index_cache.get(key)
         if index is None:
-            index = [(i, name) for i, name in enumerate(key) if name in self.frames]
+            pairs = [(i, self._rows[name]) for i, name in enumerate(key) if name in self._rows]
+            index = (np.array([i for i, _ in pairs], dtype=int), np.array([r for _, r in pairs], dtype=int))
             self._index_cache[key] = index
-        sent = 0
-        for i, name in index:
-            pose = poses[i]
-            if np.max(np.abs(pose - self._last[name])) < POSE_EPSILON:
-                continue
-            frame = self.frames[name]
-            frame.position = pose[:3]
-            frame.wxyz = pose[3:]
-            self._last[name] = pose.copy()
-            sent += 1
-        return sent
+        given, rows = index
+        wanted = np.asarray(poses, dtype=float)[given]
+        changed = np.flatnonzero(np.max(np.abs(wanted - self._last[rows]), axis=1, initial=0.0) >= POSE_EPSILON)
+        for k in changed.tolist():
+            row, pose = int(rows[k]), wanted[k]
+            write = self._writers[row]
+            if write is not None:
+                write(pose)
+            else:
+                frame = self.frames[self._names[row]]
+                frame.position = pose[:3]
+                frame.wxyz = pose[3:]
+            self._last[row] = pose
+        return len(changed)
 
 
 def add_geom(scene: viser.SceneApi, model: mujoco.MjModel, g: int, path: str) -> Any:

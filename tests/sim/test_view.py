@@ -83,14 +83,14 @@ def test_playback_follows_recorded_time_and_stops_on_request(view, world):
     stop = threading.Event()
     stop.set()
     assert play(rec, view, stop=stop) == 0
-    np.testing.assert_allclose(view._mirror._last["bowl"], rec.poses[-1, rec.bodies.index("bowl")], atol=1e-4)
+    np.testing.assert_allclose(view._mirror.pose_of("bowl"), rec.poses[-1, rec.bodies.index("bowl")], atol=1e-4)
 
 
 def test_late_playback_skips_frames_instead_of_slowing_down(view, world):
     rec = world.recording
     shown = play(rec, view, speed=1000.0)  # far faster than poses can be pushed
     assert shown < len(rec) / 2  # slow motion would have shown every frame
-    np.testing.assert_allclose(view._mirror._last["hand"], rec.poses[-1, rec.bodies.index("hand")], atol=1e-4)
+    np.testing.assert_allclose(view._mirror.pose_of("hand"), rec.poses[-1, rec.bodies.index("hand")], atol=1e-4)
 
 
 def test_capsule_mesh_is_closed_and_sized():
@@ -111,3 +111,37 @@ def test_each_object_carries_its_name_as_a_label_in_recordings_too(world):
     labels = {m["name"]: m["props"]["text"] for _t, m in recorded.messages if m["type"] == "LabelMessage"}
     for obj in OBJECTS:  # a child of the object's frame: it moves with the object
         assert labels[f"/{obj}/label"] == obj.replace("_", " ")
+
+
+def _pushed_messages(world, fast: bool) -> list[tuple[str, str, tuple[float, ...], str]]:
+    """The pose messages a mirror queues for a stretch of the recording, by the fast writer or viser's setters."""
+    import mujoco
+    import viser
+
+    from tableteach.sim.view import BodyMirror
+
+    server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
+    try:
+        data = mujoco.MjData(world.model)
+        mujoco.mj_forward(world.model, data)
+        mirror = BodyMirror(server.scene, world.model, data)
+        assert all(w is not None for w in mirror._writers), "viser no longer has what the fast pose writer needs"
+        if not fast:
+            mirror._writers = [None] * len(mirror._writers)
+        queued: list = []
+        server.scene._websock_interface.queue_message = queued.append  # type: ignore[method-assign]
+        rec = world.recording
+        for frame in range(0, len(rec), 7):
+            mirror.set_poses(rec.bodies, rec.poses[frame])
+        return [(type(m).__name__, m.name, tuple(m.position if hasattr(m, "position") else m.wxyz), m.owner)
+                for m in queued]
+    finally:
+        server.stop()
+
+
+def test_the_fast_pose_writer_queues_what_viser_setters_queue(world):
+    fast, public = _pushed_messages(world, True), _pushed_messages(world, False)
+    assert len(fast) > 20
+    assert [m[:2] + (m[3],) for m in fast] == [m[:2] + (m[3],) for m in public]
+    for ours, theirs in zip(fast, public, strict=True):
+        np.testing.assert_allclose(ours[2], theirs[2], atol=1e-12)
