@@ -55,6 +55,9 @@ class Settings(BaseSettings):
         description="a connection whose request headers are not complete this long after its first byte is closed")
     body_timeout_seconds: float = Field(10.0, gt=0.0, le=300.0,
         description="a request body that sends nothing for this long is dropped and its connection closed")
+    keep_alive_seconds: int = Field(20, ge=1, le=300,
+        description="an idle kept-alive connection is closed after this long; longer than the page's 5 s tick, so "
+                    "its next request does not race the server's close")
     joins_per_address: int = Field(30, ge=1, le=100_000,
         description="new participants one client address may start per joins_window_seconds (then 429)")
     joins_window_seconds: float = Field(60.0, gt=0.0, le=86_400.0,

@@ -67,7 +67,7 @@ def cmd_serve(args: argparse.Namespace) -> None:
     print("\n".join(lines), flush=True)
     protocol = LimitedHttpToolsProtocol.with_timeouts(settings.header_timeout_seconds, settings.body_timeout_seconds)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, access_log=False,
-                timeout_graceful_shutdown=5, http=protocol,
+                timeout_graceful_shutdown=5, http=protocol, timeout_keep_alive=settings.keep_alive_seconds,
                 # Behind the proxy the client's address (for the wrong-key limit) comes from X-Forwarded-For.
                 proxy_headers=True, forwarded_allow_ips=settings.forwarded_allow_ips)
 
