@@ -63,6 +63,7 @@ TARGET_STALL_S = 0.5
 TAB_RENEW_S = 5.0  # frontend/participant.js HEARTBEAT_MS
 POLL_WITH_EVENTS_S = 5.0  # frontend/participant.js TICK_WITH_EVENTS_MS
 POLL_WITHOUT_EVENTS_S = 1.0  # TICK_MS
+SAFETY_NET_S = 15.0  # SAFETY_NET_MS: with change events, the state is read at least this often during a task
 POSE_MESSAGES = ("SetPositionMessage", "SetOrientationMessage")
 MUJOCO_SECONDS_PER_OBJECT = 5.6  # one pick-and-place of the MuJoCo arm at speed 1
 
@@ -288,6 +289,8 @@ class Participant:
         self.refreshed = asyncio.Event()  # set after every refresh: the waits below follow it, as the page does
         self._refreshing: asyncio.Task[None] | None = None
         self._again = False
+        self._robot_wanted = False  # the next read also asks for the robot (a change event brings it otherwise)
+        self.last_refreshed = 0.0
 
     async def request(self, method: str, path: str, body: Any = None, action: str | None = None,
                       revalidate: bool = False) -> dict[str, Any]:
@@ -328,20 +331,26 @@ class Participant:
         while True:
             self._again = False
             in_task = self.state.get("stage") == "task"
+            read_robot, self._robot_wanted = in_task and self._robot_wanted, False
             me = self.request("GET", "/api/v1/me", action="GET me", revalidate=True)
-            if in_task:
+            if read_robot:
                 state, robot = await asyncio.gather(
                     me, self.request("GET", "/api/v1/me/robot", action="GET robot", revalidate=True))
                 self.robot = robot
             else:
                 state = await me
             self.take(state)
+            if not in_task and state.get("stage") == "task":  # entering a task reads the robot at once
+                self._again = self._robot_wanted = True
             self.refreshed.set()
             if not self._again:
+                self.last_refreshed = time.monotonic()
                 return
 
-    async def refresh(self) -> None:
-        """What the page's refresh() does: GET me and (during a task) GET robot; a change meanwhile reads again."""
+    async def refresh(self, with_robot: bool = True) -> None:
+        """What the page's refresh() does: GET me and (during a task, unless a change event brought it) GET robot;
+        a change meanwhile reads again."""
+        self._robot_wanted = self._robot_wanted or with_robot
         if self._refreshing is not None and not self._refreshing.done():
             self._again = True
             return
@@ -365,10 +374,15 @@ class Participant:
                         if line.startswith("event:"):
                             kind = line[6:].strip()
                         elif line.startswith("data:") and kind == "change":
-                            robot = json.loads(line[5:]).get("robot")
+                            data = json.loads(line[5:])
+                            robot = data.get("robot")
                             if robot and self.state.get("stage") == "task":
                                 self.robot = robot
-                            asyncio.create_task(self.refresh())
+                                self.refreshed.set()  # the page shows the robot's news at once
+                            held = self.tags.get("/api/v1/me")
+                            if data.get("state") and held and data["state"] == held[0]:
+                                continue  # the state has not changed: the page reads nothing
+                            asyncio.create_task(self.refresh(with_robot=not robot))
                         elif line.startswith("data:") and kind == "superseded":
                             self.events_open = False
                             return
@@ -379,14 +393,16 @@ class Participant:
             await asyncio.sleep(1.0)  # EventSource's retry
 
     async def page(self, stop: asyncio.Event) -> None:
-        """The page's tick: the lease every 5 s and, during a task, a safety-net refresh (5 s with events, else 1 s)."""
+        """The page's tick: the lease every 5 s and, during a task, a refresh (every tick without change events,
+        with them every 15 s as a safety net)."""
         last_tab = 0.0
         while not stop.is_set():
             try:
                 if time.monotonic() - last_tab > TAB_RENEW_S:
                     await self.request("POST", "/api/v1/me/tab", {"tab_id": self.tab}, action="tab")
                     last_tab = time.monotonic()
-                if self.state.get("stage") == "task":
+                due = not self.events_open or time.monotonic() - self.last_refreshed >= SAFETY_NET_S
+                if self.state.get("stage") == "task" and due:
                     await self.refresh()
             except (httpx.HTTPError, RuntimeError):
                 pass  # counted as an error already

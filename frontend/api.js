@@ -77,6 +77,9 @@ export class ParticipantApi {
     }
   }
 
+  /** The entity tag of the last answer held for a polled path (null before the first). */
+  heldTag(path) { return this.held.get(path)?.tag ?? null; }
+
   /** An action: a fresh Idempotency-Key per user action, reused by its retries. */
   act(path, body) {
     return this.request("POST", path, body, { key: randomId() });

@@ -11,7 +11,8 @@ import { TopViewPlayer, motionFrames, restPoses, tablePicture } from "./particip
 import * as mode from "./participant-view-mode.js";
 
 const TICK_MS = 1000; // polling while the change events are not connected
-const TICK_WITH_EVENTS_MS = 5000; // with them: only the lease heartbeat and a safety net
+const TICK_WITH_EVENTS_MS = 5000; // with them: the lease heartbeat, and now and then a safety net
+const SAFETY_NET_MS = 15000; // with change events, the state is read anyway at least this often during a task
 const HEARTBEAT_MS = 5000;
 const VIEWER_STALL_MS = 8000; // no 3D view connected for this long while one is shown: reload it
 const REDIRECT_SECONDS = 8;
@@ -59,6 +60,8 @@ let events = null; // the EventSource of the server's change notices
 let eventsOpen = false;
 let refreshing = null; // the refresh under way; a change notice meanwhile asks for one more
 let refreshAgain = false;
+let refreshRobot = false; // the next read also asks for the robot's activity (a change notice brings it otherwise)
+let lastRefreshed = 0;
 // How much of the robot's attempt the 3D view has played (per step: task, kind, index): the answer waits for it.
 let idleReadAt = Date.now(); // when state.idle was read
 let shown = { step: null, playing: false, fraction: null, complete: true, read: false, unreadSince: null,
@@ -560,7 +563,9 @@ function leaveScreen(view) {
   }, 1000);
 }
 
-async function refresh() {
+/** Read the state (and, during a task, the robot's activity unless a change notice just brought it). */
+async function refresh({ withRobot = true } = {}) {
+  refreshRobot ||= withRobot;
   if (refreshing) {
     refreshAgain = true; // a change arrived while reading: read once more afterwards
     return refreshing;
@@ -569,14 +574,17 @@ async function refresh() {
     do {
       refreshAgain = false;
       const inTask = state?.stage === "task";
-      const [next, robot] = await Promise.all([api.state(), inTask ? api.robot() : Promise.resolve(null)]);
+      const readRobot = inTask && refreshRobot;
+      refreshRobot = false;
+      const [next, robot] = await Promise.all([api.state(), readRobot ? api.robot() : Promise.resolve(null)]);
       showBanner(el.banner.textContent.startsWith("The connection") ? "" : el.banner.textContent);
       // The robot's activity is only read during a task; entering one reads it at once.
       const enteredTask = !inTask && next.stage === "task";
       setState(next, robot);
-      if (enteredTask) refreshAgain = true;
+      if (enteredTask) { refreshAgain = true; refreshRobot = true; }
       watchViewer();
     } while (refreshAgain);
+    lastRefreshed = Date.now();
   })();
   try {
     await refreshing;
@@ -595,11 +603,16 @@ function listen() {
   events.addEventListener("superseded", () => { events.close(); eventsOpen = false; });
   events.addEventListener("change", (event) => {
     if (blocked) return;
-    // The event carries the robot's activity: show "busy" at once, then read the state.
-    let robot = null;
-    try { robot = JSON.parse(event.data).robot; } catch { /* an older server: read everything */ }
+    // The event carries the robot's activity (shown at once) and the state's tag: the state is read only when
+    // that tag is not the one this page holds.
+    let data = null;
+    try { data = JSON.parse(event.data); } catch { /* an older server: read everything */ }
+    const robot = data?.robot ?? null;
     if (robot && state?.stage === "task") setState(null, robot);
-    refresh().catch((error) => { if (error instanceof ApiError) handleError(error); else console.error(error); });
+    if (data?.state && data.state === api.heldTag("/me")) return;
+    refresh({ withRobot: !robot }).catch((error) => {
+      if (error instanceof ApiError) handleError(error); else console.error(error);
+    });
   });
 }
 
@@ -636,8 +649,10 @@ async function tick() {
   if (finished()) return; // nothing changes any more: no lease, no polling
   try {
     if (blocked || Date.now() - lastHeartbeat > HEARTBEAT_MS) await claim();
-    // Outside a task nothing changes on the server by itself, so only a task is polled.
-    if (!blocked && (!state || state.stage === "task")) await refresh();
+    // Outside a task nothing changes on the server by itself, so only a task is polled; with change events
+    // arriving, only as a safety net.
+    const due = !eventsOpen || Date.now() - lastRefreshed >= SAFETY_NET_MS;
+    if (!blocked && (!state || state.stage === "task") && due) await refresh();
   } catch (error) {
     if (error instanceof ApiError) handleError(error);
     else console.error(error);

@@ -27,7 +27,7 @@ from .monitoring import belief_summary, list_participants
 from .participants import (answer_questionnaire, answer_quiz, finish_instructions, give_consent, join_study,
                            participant_id_of)
 from .state import STAGES, Expect, delete_recordings, participant_state
-from .freshness import activity_and_next_change, activity_tag, current_state_tag, robot_activity, tagged_state
+from .freshness import ChangeSnapshot, activity_tag, change_snapshot, current_state_tag, robot_activity, tagged_state
 from .statistics import study_statistics
 from .studies import (
     archive_study,
@@ -138,7 +138,8 @@ __all__ = [
     "place_object",
     "release_tab",
     "replay_execution",
-    "activity_and_next_change",
+    "ChangeSnapshot",
+    "change_snapshot",
     "activity_tag",
     "current_state_tag",
     "robot_activity",

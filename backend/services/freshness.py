@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import dataclass
 from typing import Any
 
 from ..db import repository as repo
@@ -54,10 +55,20 @@ def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
     return _activity(ctx, _poll_row(ctx, token))
 
 
-def activity_and_next_change(ctx: Context, token: str) -> tuple[dict[str, Any], float | None]:
-    """The robot's activity and the seconds to the execution's next stored action end (a change event's read)."""
+@dataclass(frozen=True)
+class ChangeSnapshot:
+    """What a change event says, from one read: the robot's activity, the state's tag (the page reads its state
+    only when that differs from the tag it holds) and the seconds to the execution's next stored action end."""
+
+    robot: dict[str, Any]
+    state_tag: str
+    next_change_in: float | None
+
+
+def change_snapshot(ctx: Context, token: str) -> ChangeSnapshot:
+    """The participant's change snapshot now (one query)."""
     row = _poll_row(ctx, token)
-    return _activity(ctx, row), executions.next_change_in(row.execution)
+    return ChangeSnapshot(_activity(ctx, row), state_tag(row), executions.next_change_in(row.execution))
 
 
 def _poll_row(ctx: Context, token: str) -> PollRow:

@@ -34,12 +34,15 @@ STORED_CLOCK_GRACE_SECONDS = 0.3  # a timer's notice of an action end normally c
 FULL_RETRY_SECONDS = 30
 SUPERSEDED = "event: superseded\ndata: {}\n\n"
 
-Reader = Callable[[], Awaitable[tuple[dict | None, float | None]]]  # (robot activity, seconds to the next change)
+Reader = Callable[[], Awaitable[services.ChangeSnapshot | None]]  # None: the read failed
 
 
-def change_event(counter: int, robot: dict | None) -> str:
-    """The text of one change event."""
-    return f"event: change\ndata: {json.dumps({'n': counter, 'robot': robot}, separators=(',', ':'))}\n\n"
+def change_event(counter: int, snapshot: services.ChangeSnapshot | None) -> str:
+    """The text of one change event: the change counter, the robot's activity and the state's tag (both null when
+    the read failed: the page then reads everything)."""
+    data = {"n": counter, "robot": snapshot.robot if snapshot else None,
+            "state": snapshot.state_tag if snapshot else None}
+    return f"event: change\ndata: {json.dumps(data, separators=(',', ':'))}\n\n"
 
 
 @dataclass(eq=False)
@@ -61,23 +64,24 @@ class ParticipantFeed:
         self.task = asyncio.ensure_future(self._follow())
         self.task.add_done_callback(_log_failure)
 
-    def _publish(self, counter: int, robot: dict | None) -> None:
-        self.event = change_event(counter, robot)
+    def _publish(self, counter: int, snapshot: services.ChangeSnapshot | None) -> None:
+        self.event = change_event(counter, snapshot)
         self.version += 1
         self.ready.set()
         for slot in self.streams:
             slot.wake.set()
 
-    async def _read(self) -> tuple[dict | None, float | None]:
+    async def _read(self) -> tuple[services.ChangeSnapshot | None, float | None]:
         self.reads += 1
-        return await self.read()
+        snapshot = await self.read()
+        return snapshot, None if snapshot is None else snapshot.next_change_in
 
     async def _follow(self) -> None:
         """An event at once, then one per change; the stored plan's next action end is the back-up clock (the
         process whose timer announces it may have gone)."""
         seen = self.notifier.counter(self.pid)
-        robot, due = await self._read()
-        self._publish(seen, robot)
+        snapshot, due = await self._read()
+        self._publish(seen, snapshot)
         while True:
             due_at = None if due is None else time.monotonic() + due + STORED_CLOCK_GRACE_SECONDS
             wait = EVENTS_KEEPALIVE_SECONDS if due_at is None else max(0.0, due_at - time.monotonic())
@@ -85,8 +89,8 @@ class ParticipantFeed:
             if current == seen and (due_at is None or time.monotonic() < due_at):
                 continue
             seen = current
-            robot, due = await self._read()
-            self._publish(seen, robot)
+            snapshot, due = await self._read()
+            self._publish(seen, snapshot)
 
     def stop(self) -> None:
         """No stream follows this participant any more."""
@@ -188,8 +192,9 @@ def feeds_of(request: Request) -> Feeds:
 async def change_events(token: str, ctx: ContextDep, request: Request) -> Response:
     """Server-sent events: `change` whenever the participant's state or robot changes.
 
-    Each event's data is {"n": change counter, "robot": GET /me/robot's answer}, so the page can show the
-    robot busy at once; it then reads GET /api/v1/me as usual. EventSource cannot send an Authorization
+    Each event's data is {"n": change counter, "robot": GET /me/robot's answer, "state": GET /api/v1/me's ETag
+    now}, so the page shows the robot busy at once without asking, and reads its state only when the tag differs
+    from the one it holds. EventSource cannot send an Authorization
     header, so the token comes from the page's own path (the page's address carries it already).
     """
     try:
@@ -197,12 +202,12 @@ async def change_events(token: str, ctx: ContextDep, request: Request) -> Respon
     except NotAuthenticated:
         return HTMLResponse("<p>No participant has this link.</p>", status_code=404)
 
-    def read() -> tuple[dict | None, float | None]:
+    def read() -> services.ChangeSnapshot | None:
         try:
-            return services.activity_and_next_change(ctx, token)
-        except Exception:  # a head start and a back-up clock for the page; it reads the state next anyway
-            log.exception("the robot activity for a change event failed")
-            return None, None
+            return services.change_snapshot(ctx, token)
+        except Exception:  # a head start and a back-up clock for the page; without it the page reads everything
+            log.exception("the change snapshot for a change event failed")
+            return None
 
     feeds = feeds_of(request)
     opened = feeds.open(pid, ctx.notifier, lambda: run_in_threadpool(read))
