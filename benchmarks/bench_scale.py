@@ -388,7 +388,8 @@ class Participant:
                                 self.robot = robot
                                 self.refreshed.set()  # the page shows the robot's news at once
                             held = self.tags.get("/api/v1/me")
-                            if data.get("state") and held and data["state"] == held[0]:
+                            if data.get("state") and data["state"] in (held[0] if held else None,
+                                                                       self.state.get("etag")):
                                 continue  # the state has not changed: the page reads nothing
                             asyncio.create_task(self.refresh(with_robot=not robot))
                         elif line.startswith("data:") and kind == "superseded":

@@ -609,7 +609,7 @@ function listen() {
     try { data = JSON.parse(event.data); } catch { /* an older server: read everything */ }
     const robot = data?.robot ?? null;
     if (robot && state?.stage === "task") setState(null, robot);
-    if (data?.state && data.state === api.heldTag("/me")) return;
+    if (data?.state && (data.state === api.heldTag("/me") || data.state === state?.etag)) return;
     refresh({ withRobot: !robot }).catch((error) => {
       if (error instanceof ApiError) handleError(error); else console.error(error);
     });

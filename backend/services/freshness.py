@@ -8,7 +8,6 @@ the answer that carried the tag; the page counts on from there until the next ch
 
 from __future__ import annotations
 
-import hashlib
 import json
 from dataclasses import dataclass
 from typing import Any
@@ -17,20 +16,8 @@ from ..db import repository as repo
 from ..db.repository import PollRow
 from . import executions
 from .context import Context
+from .etags import digest_tag, state_tag
 from .state import unknown_token, participant_and_study, state_view, table_key
-
-
-def _tag(*parts: object) -> str:
-    digest = hashlib.blake2b("|".join(map(str, parts)).encode(), digest_size=12).hexdigest()
-    return f'W/"{digest}"'
-
-
-def state_tag(row: PollRow) -> str:
-    """The entity tag of the state built from these row versions (now)."""
-    ex = row.execution
-    finished = bool(ex and ex.get("status") == "running" and executions.progress(ex).finished)
-    updated = row.study_updated_at.isoformat() if row.study_updated_at else ""
-    return _tag("state", row.participant_id, row.participant_version, updated, row.task_version, finished)
 
 
 def current_state_tag(ctx: Context, token: str) -> str | None:
@@ -41,13 +28,11 @@ def current_state_tag(ctx: Context, token: str) -> str | None:
 
 
 def tagged_state(ctx: Context, token: str) -> tuple[dict[str, Any], str]:
-    """The participant's state and its tag, read in one transaction."""
+    """The participant's state and its tag (the state's own `etag`)."""
     with ctx.db.read() as s:
         participant, study = participant_and_study(s, token)
-        row = repo.poll_row(s, token=token)
-        if row is None:
-            raise unknown_token()
-        return state_view(s, participant, study), state_tag(row)
+        state = state_view(s, participant, study)
+    return state, state["etag"]
 
 
 def robot_activity(ctx: Context, token: str) -> dict[str, Any]:
@@ -97,4 +82,4 @@ def _activity(ctx: Context, row: PollRow) -> dict[str, Any]:
 
 def activity_tag(activity: dict[str, Any]) -> str:
     """The entity tag of a robot activity answer (it is small, so its content is the tag)."""
-    return _tag("robot", json.dumps(activity, sort_keys=True, separators=(",", ":")))
+    return digest_tag("robot", json.dumps(activity, sort_keys=True, separators=(",", ":")))

@@ -20,6 +20,7 @@ from ..errors import Conflict, NotAuthenticated
 from ..recording_store import RecordingId
 from . import executions, outcomes
 from .context import Context, app_version, aware, iso
+from .etags import state_tag_of
 from .runtime import PLAN_AHEAD
 from .guidance import lay_summary, progress, required_objects
 from .page_state import extend_state
@@ -193,6 +194,7 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
     }
     if study.objects:  # a study with its own objects: how each looks (the page words its text for any task)
         out["own_objects"] = [{k: o[k] for k in ("name", "shape", "colour")} for o in study.objects]
+    ts = None
     if participant.stage == "task":
         ts = current_task(s, participant)
         task = study.tasks[participant.task_index]
@@ -244,6 +246,7 @@ def state_view(s: Any, participant: ParticipantRow, study: StudyRow, *, replayed
     out["progress"] = progress(configs, participant.stage, position, out["step"],
                                speed=study.robot_speed, questionnaire=bool(study.questionnaire))
     extend_state(out, s, participant, study)  # issue 21's hook: the participant page's extras (page_state.py)
+    out["etag"] = state_tag_of(participant, study, ts)  # GET /me's ETag: a change event with it brings nothing new
     return out
 
 

@@ -217,6 +217,8 @@ class ParticipantState(BaseModel):
     idle: IdleOut | None = Field(None, description="with a study time-out: how long the participant has been idle "
                                  "(the page asks \"are you still there?\" a minute before the time-out)")
     replayed: bool = Field(False, description="true when an Idempotency-Key repeated an earlier request")
+    etag: str = Field(description="this state's entity tag, as GET /api/v1/me sends it in its ETag header and each "
+                                  "change event in its `state`: a page that holds it has nothing new to read")
 
 
 class JoinOut(BaseModel):

@@ -5,6 +5,7 @@ the event stream waking itself from the stored plan, the study's robot_speed in 
 from __future__ import annotations
 
 import asyncio
+import json
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -13,7 +14,7 @@ from typing import Any
 import pytest
 
 from tableteach.robot import ExecutionPlan, TraceRobot
-from tableteach.services import LocalNotifier, executions
+from tableteach.services import ChangeSnapshot, LocalNotifier, executions
 from tableteach.web.events import Feeds, stream
 from tableteach.web.streams import StreamSlots
 
@@ -160,8 +161,8 @@ def test_the_event_stream_wakes_itself_at_the_next_stored_action_end() -> None:
     notifier = LocalNotifier()  # nobody publishes: the process with the timer has gone
     dues = [0.05, None]
 
-    async def read() -> tuple[dict, float | None]:
-        return {"moving": True}, (dues.pop(0) if dues else None)
+    async def read() -> ChangeSnapshot:
+        return ChangeSnapshot({"moving": True}, 'W/"state"', dues.pop(0) if dues else None)
 
     async def scenario() -> list[str]:
         feeds = Feeds(StreamSlots(2, 10))
@@ -177,6 +178,7 @@ def test_the_event_stream_wakes_itself_at_the_next_stored_action_end() -> None:
 
     first, second = run_scenario(scenario)
     assert first.startswith("retry:") and "event: change" in second
+    assert json.loads(second.split("data: ", 1)[1]) == {"n": 0, "robot": {"moving": True}, "state": 'W/"state"'}
 
 
 def test_on_sqlite_the_notifier_stays_in_the_process(tmp_path: Path) -> None:

@@ -35,6 +35,21 @@ def test_an_unchanged_state_is_answered_304_and_a_placement_gives_a_new_tag(app_
     assert _poll(app_client, token, "/api/v1/me", changed.headers["etag"]).status_code == 304
 
 
+def test_an_actions_answer_carries_the_tag_that_get_me_and_the_change_snapshot_give(app_client) -> None:
+    from tableteach import services
+
+    study_id = make_study(app_client, n_practice=0, n_demonstrations=2, n_queries=1, n_tests=0)
+    token, _ = to_teaching(app_client, study_id)
+    placed = app_client.post("/api/v1/me/placements", json={"object": "bowl"}, headers=bearer(token))
+    tag = placed.json()["etag"]
+    assert _poll(app_client, token, "/api/v1/me", tag).status_code == 304  # the page holds it: nothing to read
+    assert services.change_snapshot(app_client.ctx, token).state_tag == tag  # a change event now says the same
+    full = _poll(app_client, token, "/api/v1/me", None)
+    assert full.headers["etag"] == full.json()["etag"] == tag
+    app_client.post("/api/v1/me/placements", json={"object": "fork"}, headers=bearer(token))
+    assert services.change_snapshot(app_client.ctx, token).state_tag != tag
+
+
 def test_a_study_edit_gives_a_new_tag(app_client) -> None:
     study_id = make_study(app_client, n_practice=0, n_demonstrations=1, n_queries=1, n_tests=0)
     token, _ = to_teaching(app_client, study_id)
