@@ -136,6 +136,16 @@ def add_geom(scene: viser.SceneApi, model: mujoco.MjModel, g: int, path: str) ->
     raise ValueError(f"geom {g} has type {kind}: expected plane, box, sphere, ellipsoid, cylinder, capsule or mesh")
 
 
+def prepare_server(server: viser.ViserServer, model: mujoco.MjModel, camera: str = "overview") -> None:
+    """A new viser server's look for participants: no logo or share button, the panel folded, the initial camera,
+    and the default lights without shadows (three 1024-pixel shadow maps drawn every frame are two thirds of a
+    frame's cost with software WebGL, and cast nothing visible on these tables)."""
+    server.gui.configure_theme(show_logo=False, show_share_button=False)
+    server.gui.main_panel.minimize()
+    server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+    initial_camera(server, model, camera)
+
+
 def initial_camera(server: viser.ViserServer, model: mujoco.MjModel, camera: str = "overview") -> None:
     """Point the server's initial camera through the scene's named camera at the table tops."""
     cam = model.camera(camera)
@@ -196,9 +206,7 @@ class SceneView:
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self._on_click = on_click
         self._lock = threading.Lock()
-        self.server.gui.configure_theme(show_logo=False, show_share_button=False)
-        self.server.gui.main_panel.minimize()
-        initial_camera(self.server, model, camera)
+        prepare_server(self.server, model, camera)
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         self._mirror = BodyMirror(self.server.scene, model, data)
