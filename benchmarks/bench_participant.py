@@ -11,6 +11,9 @@
   nothing within 15 s is counted as missed and tried again.
 - load to 3D view: from navigation start of /p/{token} (at a demonstration) until viser's client in the
   frame has connected through the proxy and reported its camera (the server counts it as watching).
+- longest stall: the longest pause of a 100 ms timer on the page's main thread (which the 3D view's frame
+  shares) from the reload on, through the idle stretch and the placements; the page switches to 2D after two
+  stalls of 5 s within a minute (frontend/participant-view-mode.js).
 - idle tab CPU: over a quiet stretch with the 3D view shown and nothing moving, as a share of one core: the
   CPU time of every Chromium process this benchmark started (/proc: the renderer, and the GPU process, which
   does the software WebGL drawing), and Chromium's own Performance.getMetrics TaskDuration (the renderer's
@@ -40,6 +43,9 @@ from conftest import LiveServer, launch_chromium  # noqa: E402
 from scene_clicks import project, wait_for_camera  # noqa: E402
 from tests.web.conftest import open_study, study_spec  # noqa: E402
 
+STALLS = """(() => { if (window !== window.top) return; window.longestStall = 0; let last = performance.now();
+  setInterval(() => { const now = performance.now(); window.longestStall = Math.max(window.longestStall, now - last);
+    last = now; }, 100); })();"""
 OBJECTS = ["dinner_plate", "small_plate", "bowl", "knife", "fork"]
 VIEW_OBJECTS = OBJECTS[:3]  # large enough that a click projected to the centre lands on them (the cutlery is thin)
 WATCH_PANEL = """(name) => {
@@ -151,6 +157,7 @@ def main() -> None:
             study_id = open_study(server.url, spec)
             with launch_chromium({"width": width, "height": height}) as context:
                 page = context.new_page()
+                page.add_init_script(STALLS)
                 page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=bench")
                 token = page.url.rstrip("/").rsplit("/", 1)[-1]
                 headers = {"Authorization": f"Bearer {token}"}
@@ -217,6 +224,7 @@ def main() -> None:
                         httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers).raise_for_status()
                         page.wait_for_function("() => !document.querySelector('.placed')?.textContent.includes('fork')")
                     time.sleep(0.3)
+                longest_stall = page.evaluate("() => window.longestStall") / 1000
         finally:
             server.stop()
 
@@ -233,6 +241,7 @@ def main() -> None:
         print(f"click in the 3D view -> panel shows the robot busy ({len(cms)} clicks, {missed} missed): median "
               f"{statistics.median(cms):.0f} ms, max {max(cms):.0f} ms")
     print(f"page load -> 3D view connected and watching: {load_seconds:.2f} s")
+    print(f"longest stall of the page's main thread from the load on: {longest_stall:.1f} s")
     print(f"idle participant tab (3D view shown, nothing moving), over {args.idle_seconds:.0f} s: "
           f"{100 * idle_cpu:.1f}% of one core (CPU of all Chromium processes), "
           f"{100 * idle_share:.1f}% (renderer main thread busy, Chromium TaskDuration)")
