@@ -24,6 +24,9 @@
   let lastFrame = -Infinity;
   let timer = null;
   let pending = false;
+  let askedAt = 0; // when the pending frame was asked of the browser
+  let latency = 0; // how long the browser took to run the last one asked for (vsync, a frame still drawing): ask
+  // that much earlier, up to half the cap
   let lastAsked = -Infinity; // when a frame was last asked for
   let heartbeatRunning = false; // inside a 1 s interval's callback
   let heartbeatAsked = false; // and it asked for a frame
@@ -31,6 +34,7 @@
   function run(time) {
     pending = false;
     lastFrame = performance.now();
+    latency = Math.min(lastFrame - askedAt, CAPPED_FRAME_MS / 2);
     const callbacks = [...held.values()];
     held.clear();
     stats.frames += 1;
@@ -43,9 +47,10 @@
   function schedule() {
     if (pending || held.size === 0) return;
     const now = performance.now();
-    const wait = off || now < inputUntil ? 0 : lastFrame + CAPPED_FRAME_MS - now;
+    const wait = off || now < inputUntil ? 0 : lastFrame + CAPPED_FRAME_MS - latency - now;
     if (wait <= 0) {
       pending = true;
+      askedAt = now;
       nativeFrame(run);
     } else if (timer === null) {
       timer = setTimeout(() => { timer = null; schedule(); }, wait);
