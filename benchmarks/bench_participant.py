@@ -5,8 +5,15 @@
 - click to panel: a placement arrives at the server (POST /me/placements, the same service call a click in
   the 3D view makes) and the page's side panel shows the robot busy, then the object on Table B; times
   from the request to the panel's DOM change (MutationObserver, same machine clock), median and p95.
+- click in the 3D view to panel (--view-clicks): the pointer is moved onto an object on Table A (projected through
+  the browser's camera, as tests/browser/test_participant.py clicks), rests 0.4 s, clicks; times from the click to
+  the panel showing the robot busy (the click reached the server through viser's websocket). A click that shows
+  nothing within 15 s is counted as missed and tried again.
 - load to 3D view: from navigation start of /p/{token} (at a demonstration) until viser's client in the
   frame has connected through the proxy and reported its camera (the server counts it as watching).
+- longest stall: the longest pause of a 100 ms timer on the page's main thread (which the 3D view's frame
+  shares) from the reload on, through the idle stretch and the placements; the page switches to 2D after two
+  stalls of 5 s within a minute (frontend/participant-view-mode.js).
 - idle tab CPU: over a quiet stretch with the 3D view shown and nothing moving, as a share of one core: the
   CPU time of every Chromium process this benchmark started (/proc: the renderer, and the GPU process, which
   does the software WebGL drawing), and Chromium's own Performance.getMetrics TaskDuration (the renderer's
@@ -23,17 +30,24 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests" / "browser"))
 
 import httpx  # noqa: E402
+import numpy as np  # noqa: E402
 
 from conftest import LiveServer, launch_chromium  # noqa: E402
+from scene_clicks import project, wait_for_camera  # noqa: E402
 from tests.web.conftest import open_study, study_spec  # noqa: E402
 
+STALLS = """(() => { if (window !== window.top) return; window.longestStall = 0; let last = performance.now();
+  setInterval(() => { const now = performance.now(); window.longestStall = Math.max(window.longestStall, now - last);
+    last = now; }, 100); })();"""
 OBJECTS = ["dinner_plate", "small_plate", "bowl", "knife", "fork"]
+VIEW_OBJECTS = OBJECTS[:3]  # large enough that a click projected to the centre lands on them (the cutlery is thin)
 WATCH_PANEL = """(name) => {
   window.panelSeen = null;  // {busy, placed}: when the panel first showed the robot busy, then the object placed
   let busy = null;
@@ -97,17 +111,45 @@ def wait_watching(server: LiveServer, key: str, timeout: float = 120.0) -> float
     raise TimeoutError(f"no browser watched table {key} within {timeout} s")
 
 
+def click_in_view(page: Any, server: LiveServer, key: str, obj: str) -> float | None:
+    """Click an object in the page's 3D view; seconds from the click to the panel showing the robot busy (None
+    if it did not within 15 s)."""
+    robot = server.ctx.robot
+    world = robot.scene(key)
+    if world is None:  # an untouched table has no simulation yet: the same start, rebuilt
+        robot.restore(key, [])
+        world = robot.scene(key)
+    camera = wait_for_camera(lambda: robot.view_clients(key))
+    page.evaluate("() => window.scrollTo(0, 0)")
+    box = page.frame_locator("#viewer-frame").locator("canvas").first.bounding_box()
+    geoms = np.flatnonzero(world.model.geom_bodyid == world.layout.body[obj])
+    point = world.data.geom_xpos[geoms].mean(axis=0) + np.array([0.0, 0.0, 0.01])
+    x, y = project(camera, point, box["width"], box["height"])
+    page.mouse.move(box["x"] + x, box["y"] + y)
+    time.sleep(0.4)
+    page.evaluate(WATCH_PANEL, obj.replace("_", " "))
+    clicked = time.time()
+    page.mouse.click(box["x"] + x, box["y"] + y)
+    try:
+        page.wait_for_function("() => window.panelSeen !== null", timeout=15_000)
+    except Exception:
+        return None
+    seen = page.evaluate("() => window.panelSeen")
+    return (seen["busy"] or seen["placed"]) / 1000 - clicked
+
+
 def main() -> None:
     """Run the three measurements and print them."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--clicks", type=int, default=20)
+    parser.add_argument("--view-clicks", type=int, default=3, help="clicks in the 3D view (at most 3)")
     parser.add_argument("--viewport", default="1366x768")
     parser.add_argument("--idle-seconds", type=float, default=10.0)
     parser.add_argument("--settle-seconds", type=float, default=10.0, help="after the load, before the idle stretch")
     parser.add_argument("--robot-speed", type=float, default=8.0, help="server playback speed (motion between clicks)")
     args = parser.parse_args()
     width, height = (int(v) for v in args.viewport.split("x"))
-    demos = -(-args.clicks // len(OBJECTS))
+    demos = -(-args.clicks // len(OBJECTS)) + (1 if args.view_clicks else 0)
     with tempfile.TemporaryDirectory() as root:
         server = LiveServer(Path(root), robot="mujoco", robot_speed=args.robot_speed).start()
         try:
@@ -115,6 +157,7 @@ def main() -> None:
             study_id = open_study(server.url, spec)
             with launch_chromium({"width": width, "height": height}) as context:
                 page = context.new_page()
+                page.add_init_script(STALLS)
                 page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=bench")
                 token = page.url.rstrip("/").rsplit("/", 1)[-1]
                 headers = {"Authorization": f"Bearer {token}"}
@@ -147,6 +190,21 @@ def main() -> None:
                 idle_share = (task_seconds() - c0) / elapsed
                 idle_cpu = (chromium_cpu_seconds() - p0) / elapsed
 
+                clicks, missed = [], 0
+                for obj in VIEW_OBJECTS[:args.view_clicks]:
+                    for _ in range(3):
+                        took = click_in_view(page, server, key, obj)
+                        if took is not None:
+                            clicks.append(took)
+                            break
+                        missed += 1
+                    page.wait_for_selector("#status:not(.busy)", timeout=60_000)
+                    time.sleep(0.3)
+                if args.view_clicks:
+                    httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers).raise_for_status()
+                    page.wait_for_function("() => !document.querySelector('.placed')?.textContent.includes('fork')")
+                    wait_watching(server, f"{pid}/0")
+
                 busy, placed = [], []
                 for i in range(args.clicks):
                     obj = OBJECTS[i % len(OBJECTS)]
@@ -166,6 +224,7 @@ def main() -> None:
                         httpx.post(f"{server.url}/api/v1/me/demonstration/finish", headers=headers).raise_for_status()
                         page.wait_for_function("() => !document.querySelector('.placed')?.textContent.includes('fork')")
                     time.sleep(0.3)
+                longest_stall = page.evaluate("() => window.longestStall") / 1000
         finally:
             server.stop()
 
@@ -177,7 +236,12 @@ def main() -> None:
         bms = [1000 * v for v in busy]
         print(f"placement request -> panel shows the robot busy ({len(bms)} seen): median {statistics.median(bms):.0f} "
               f"ms, p95 {percentile(bms, 0.95):.0f} ms")
+    if clicks:
+        cms = [1000 * v for v in clicks]
+        print(f"click in the 3D view -> panel shows the robot busy ({len(cms)} clicks, {missed} missed): median "
+              f"{statistics.median(cms):.0f} ms, max {max(cms):.0f} ms")
     print(f"page load -> 3D view connected and watching: {load_seconds:.2f} s")
+    print(f"longest stall of the page's main thread from the load on: {longest_stall:.1f} s")
     print(f"idle participant tab (3D view shown, nothing moving), over {args.idle_seconds:.0f} s: "
           f"{100 * idle_cpu:.1f}% of one core (CPU of all Chromium processes), "
           f"{100 * idle_share:.1f}% (renderer main thread busy, Chromium TaskDuration)")

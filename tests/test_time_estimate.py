@@ -77,3 +77,33 @@ def test_before_anything_is_measured_the_model_is_used_and_nothing_is_left_at_th
     model = sum(s.own_seconds for s in plan) + (5 + te.OBJECTS_PER_EXECUTION) * te.PLACEMENT_SECONDS
     assert te.seconds_left(plan, 0, line, 0.0, speed=1.0) == pytest.approx(model)
     assert te.seconds_left(plan, len(plan), line, 500.0, speed=1.0) == 0.0
+
+
+# A browser walk's recorded events (tests/browser/test_participant.py, laptop, machine at load average 4): seconds
+# since joining, the event, and its payload's counts. The walker keeps to a quarter of each screen's allowance; the
+# robot's speed is 3.
+RECORDED_WALK = [(23.08, "consent", {}), (38.20, "instructions_read", {}),
+                 (38.69, "quiz", {"passed": False}), (49.61, "quiz", {"passed": True}),
+                 (81.88, "demonstration", {"placed": ["x"] * 4}),
+                 (83.29, "execution_started", {}), (93.68, "execution_finished", {"events": ["x"] * 4}),
+                 (99.67, "assessment", {}), (130.06, "questionnaire", {})]
+# When each screen appeared (seconds since joining) and how many screens of the plan were done then.
+RECORDED_STEPS = [("instructions", 23.1, 1), ("quiz", 38.2, 2), ("task introduction", 49.66, 3),
+                  ("query", 82.83, 4), ("questionnaire", 99.79, 5)]
+RECORDED_END = 130.13
+
+
+def test_on_a_recorded_browser_walk_the_estimate_is_within_a_fifth_of_the_time_left_at_every_step() -> None:
+    """The estimate the page would have shown on each screen after the first (before any screen is done the
+    participant's pace is unknown and the model's is used), from the walk's own recorded events."""
+    counts = [[("practice", 0), ("demonstration", 1), ("query", 1), ("test", 0)]]
+    for name, at, done in RECORDED_STEPS:
+        seen = [Event(kind, t, payload, 0, "query" if kind.startswith("execution") else "demonstration", 0)
+                for t, kind, payload in RECORDED_WALK if t <= at]
+        line = te.timeline(seen, JOINED)
+        demos = line.demo_objects
+        plan = te.screens(counts, quiz=True, questionnaire=True,
+                          demo_objects=sum(demos) / len(demos) if demos else te.DEMO_OBJECTS)
+        estimate = te.seconds_left(plan, done, line, at, speed=3.0)
+        actual = RECORDED_END - at
+        assert estimate == pytest.approx(actual, rel=0.2), f"{name}: {estimate:.0f} s for {actual:.0f} s"

@@ -21,6 +21,7 @@ HIDDEN_GROUP = 3  # geoms in this group and above are collision-only (see scene.
 TABLE_LABELS = {"table_a": "Table A", "table_b": "Table B"}  # as the participant's instructions name them
 OBJECT_LABEL_HEIGHT = 0.02  # m above an object's centre; the label hangs below that point on screen, away from the arm
 CAPTION_NODE = "/caption"  # the scene node of the one-line status (recordings change its text)
+SKY_LIGHT = "/sky_light"  # the scene node of the light from above (prepare_server)
 
 
 @lru_cache(maxsize=64)
@@ -192,6 +193,23 @@ def add_geom(scene: viser.SceneApi, model: mujoco.MjModel, g: int, path: str) ->
     raise ValueError(f"geom {g} has type {kind}: expected plane, box, sphere, ellipsoid, cylinder, capsule or mesh")
 
 
+def prepare_server(server: viser.ViserServer, model: mujoco.MjModel, camera: str = "overview") -> None:
+    """A new viser server's look for participants: no logo or share button, the panel folded, the initial camera,
+    and lights that software WebGL draws cheaply (see SKY_LIGHT)."""
+    server.gui.configure_theme(show_logo=False, show_share_button=False)
+    server.gui.main_panel.minimize()
+    # Three 1024-pixel shadow maps drawn every frame were two thirds of a frame's cost with software WebGL; the
+    # soft shadows under the objects are what is given up.
+    server.scene.configure_default_lights(enabled=True, cast_shadow=False)
+    # viser's default environment map is an HDR JPEG its client decodes through WebGL and reads back: with software
+    # WebGL that blocked the page 4-9 s at every load of the view (live or a recording), enough for the page's stall
+    # watch to switch to 2D. A hemisphere light from above lights the scene about as the map did.
+    server.scene.configure_environment_map(hdri=None)
+    server.scene.add_light_hemisphere(SKY_LIGHT, sky_color=(235, 242, 255), ground_color=(180, 180, 180),
+                                      intensity=3.0, position=(0.0, 0.0, 1.0))
+    initial_camera(server, model, camera)
+
+
 def initial_camera(server: viser.ViserServer, model: mujoco.MjModel, camera: str = "overview") -> None:
     """Point the server's initial camera through the scene's named camera at the table tops."""
     cam = model.camera(camera)
@@ -252,9 +270,7 @@ class SceneView:
         self.server = viser.ViserServer(host=host, port=port, verbose=False)
         self._on_click = on_click
         self._lock = threading.Lock()
-        self.server.gui.configure_theme(show_logo=False, show_share_button=False)
-        self.server.gui.main_panel.minimize()
-        initial_camera(self.server, model, camera)
+        prepare_server(self.server, model, camera)
         data = mujoco.MjData(model)
         mujoco.mj_forward(model, data)
         self._mirror = BodyMirror(self.server.scene, model, data)

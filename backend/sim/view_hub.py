@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 import viser
 
-from .view import BodyMirror, add_caption, add_table_labels, initial_camera, moving_bodies
+from .view import BodyMirror, add_caption, add_table_labels, moving_bodies, prepare_server
 
 log = logging.getLogger(__name__)
 TICKET_SECONDS = 60.0  # a ticket is used by the proxy within milliseconds of being issued
@@ -184,9 +184,7 @@ class ViewHub:
                 return self._server
             share_message_compressors()
             server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
-            server.gui.configure_theme(show_logo=False, show_share_button=False)
-            server.gui.main_panel.minimize()
-            initial_camera(server, self._model)
+            prepare_server(server, self._model)
             data = mujoco.MjData(self._model)
             mujoco.mj_forward(self._model, data)
             static = [self._model.body(b).name for b in range(self._model.nbody)

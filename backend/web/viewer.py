@@ -26,6 +26,7 @@ from .. import services
 from ..errors import NotAuthenticated
 from .conditional import NOT_MODIFIED, client_has, not_modified, tag_answer
 from .deps import ContextDep, IdempotencyKey, TokenDep
+from .frontend_files import FRONTEND
 from .motion import playback_url
 from .robots import viewer_client_html
 from .schemas import ParticipantState, StepGuard, error_responses
@@ -90,13 +91,23 @@ PARTICIPANT_CLIENT_HEAD = b"""<style id="tableteach-participant">
 </style>"""
 
 
+@lru_cache(maxsize=1)
+def pacing_script() -> bytes:
+    """frontend/viewer-pacing.js as an inline script: it must run before viser's own (which it paces)."""
+    code = (FRONTEND / "viewer-pacing.js").read_bytes()
+    if b"</" in code:
+        raise ValueError("viewer-pacing.js contains '</': it would end its inline <script> early")
+    return b'<script id="tableteach-pacing">' + code + b"</script>"
+
+
 def participant_client_html(raw: bytes) -> bytes:
-    """Viser's client page with the participant's style sheet first in its head (ValueError without a <head>)."""
+    """Viser's client page with the participant's style sheet and frame pacing first in its head (ValueError
+    without a <head>)."""
     at = raw.find(b"<head>")
     if at < 0:
         raise ValueError("viser's client page has no <head>: expected the built index.html of viser 1.1")
     at += len(b"<head>")
-    return raw[:at] + PARTICIPANT_CLIENT_HEAD + raw[at:]
+    return raw[:at] + PARTICIPANT_CLIENT_HEAD + pacing_script() + raw[at:]
 
 
 @lru_cache(maxsize=1)
