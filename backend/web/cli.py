@@ -138,6 +138,8 @@ def cmd_teach(args: argparse.Namespace) -> dict:
     import httpx
 
     from ..client import ApiError, ExperimenterClient, StudyKnowledge, run_teacher
+    from ..core.domain import DINNER_TASK_FORMULAS
+    from ..core.ltl import parse
 
     if not 0.0 <= args.noise <= 1.0:
         raise ValueError(f"--noise must be a probability in [0, 1], got {args.noise}")
@@ -145,6 +147,9 @@ def cmd_teach(args: argparse.Namespace) -> dict:
         raise ValueError(f"--attention-fail-rate must be a probability in [0, 1], got {args.attention_fail_rate}")
     if args.session_timeout is not None and args.session_timeout <= 0:
         raise ValueError(f"--session-timeout must be a positive number of seconds, got {args.session_timeout}")
+    for truth in args.ground_truth:  # the syntax before any request (the objects are checked against the study's)
+        if truth not in DINNER_TASK_FORMULAS:
+            parse(truth)
     try:
         knows = StudyKnowledge(attention_fail_rate=args.attention_fail_rate)
         if args.token:

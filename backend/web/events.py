@@ -142,7 +142,8 @@ async def stream(feeds: Feeds, feed: ParticipantFeed, slot: Slot,
 
     Its slot is given back when it ends; HeldStream also gives it back if the stream never started."""
     try:
-        await feed.ready.wait()
+        if not await _ready(feed):
+            return  # the feed failed before its first read (logged there): the browser reconnects to a new one
         sent = feed.version
         yield f"retry: {EVENTS_RETRY_MS}\n" + feed.event
         ends = time.monotonic() + seconds
@@ -166,6 +167,19 @@ async def stream(feeds: Feeds, feed: ParticipantFeed, slot: Slot,
                 yield ": still here\n\n"
     finally:
         feeds.close(feed, slot)
+
+
+async def _ready(feed: ParticipantFeed) -> bool:
+    """Wait for the feed's first event; False if the feed stopped before it."""
+    if feed.ready.is_set() or feed.task is None:
+        await feed.ready.wait()
+        return True
+    waiter = asyncio.ensure_future(feed.ready.wait())
+    try:
+        await asyncio.wait({waiter, feed.task}, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        waiter.cancel()
+    return feed.ready.is_set()
 
 
 class HeldStream(StreamingResponse):

@@ -9,7 +9,7 @@ import threading
 import pytest
 
 from tableteach.core.domain import get_domain
-from tableteach.services import TASK_FORMULAS, LocalNotifier
+from tableteach.services import TASK_FORMULAS, ChangeSnapshot, LocalNotifier
 from tableteach.services.guidance import lay_summary, required_objects
 from tableteach.web.events import Feeds, stream
 from tableteach.web.streams import StreamSlots
@@ -43,8 +43,9 @@ def test_a_waiter_wakes_on_publish_from_another_thread_and_times_out_otherwise()
 def test_the_event_stream_sends_the_counter_then_each_change() -> None:
     notifier = LocalNotifier()
 
-    async def read() -> tuple[dict, None]:
-        return {"moving": notifier.counter(3) > 0}, None
+    async def read() -> ChangeSnapshot:
+        moved = notifier.counter(3) > 0
+        return ChangeSnapshot({"moving": moved}, f'W/"{int(moved)}"', None)
 
     async def scenario() -> list[str]:
         feeds = Feeds(StreamSlots(2, 10))
@@ -59,8 +60,9 @@ def test_the_event_stream_sends_the_counter_then_each_change() -> None:
         return [first, second]
 
     first, second = run_scenario(scenario)
-    assert first.startswith("retry: ") and 'event: change\ndata: {"n":0,"robot":{"moving":false}}\n\n' in first
-    assert second == 'event: change\ndata: {"n":1,"robot":{"moving":true}}\n\n'
+    assert first.startswith("retry: ")
+    assert 'event: change\ndata: {"n":0,"robot":{"moving":false},"state":"W/\\"0\\""}\n\n' in first
+    assert second == 'event: change\ndata: {"n":1,"robot":{"moving":true},"state":"W/\\"1\\""}\n\n'
 
 
 def test_every_stored_action_publishes_a_change_for_that_participant(app_client) -> None:
@@ -212,3 +214,18 @@ def test_the_codebook_names_every_event_kind_the_services_log() -> None:
     assert {"replay_watched", "withdrawn", "screened_out", "execution_finished"} <= logged  # the scan finds them
     levels = {k.split(" (")[0].strip() for k in codebook.MEANINGS["events"]["kind"][2].split(", ")}
     assert logged <= levels, logged - levels
+
+
+def test_a_stream_whose_feed_fails_before_its_first_read_ends_instead_of_hanging() -> None:
+    notifier = LocalNotifier()
+
+    async def read() -> ChangeSnapshot:
+        raise RuntimeError("the database is gone")
+
+    async def scenario() -> list[str]:
+        feeds = Feeds(StreamSlots(2, 10))
+        opened = feeds.open(4, notifier, read)
+        assert opened is not None
+        return [chunk async for chunk in stream(feeds, *opened)]
+
+    assert run_scenario(scenario) == []  # ended at once: the browser's EventSource reconnects to a new feed
