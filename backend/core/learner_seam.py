@@ -16,9 +16,11 @@ seam existed (same functions, same random draws), so a dinner study's exports an
 from __future__ import annotations
 
 import math
+import threading
 from abc import ABC, abstractmethod
-from functools import cached_property, lru_cache
-from typing import Literal, Sequence
+from collections.abc import Callable
+from functools import lru_cache
+from typing import Any, Literal, Sequence
 
 import numpy as np
 
@@ -174,60 +176,63 @@ class EnumeratedBelief(LearnerBelief):
 
 
 class ExactBelief(LearnerBelief):
-    """The exact factorised learner's belief (core.exact): nothing listed, everything computed exactly."""
+    """The exact factorised learner's belief (core.exact): nothing listed, everything computed exactly. Each answer
+    is computed once (past eight objects the MAP takes a minute): two threads asking at once wait for one answer."""
 
     path: Path = "exact"
 
     def __init__(self, domain: Domain, posterior: ExactPosterior) -> None:
         self.domain = domain
         self.posterior = posterior
-        self._similarities: dict[int, float] = {}  # per truth: one token-weighted DP each
+        self._lock = threading.Lock()
+        self._known: dict[object, Any] = {}
 
-    @cached_property
-    def _entropy(self) -> float:
-        return self.posterior.entropy()
+    def _once(self, key: object, compute: Callable[[], Any]) -> Any:
+        with self._lock:
+            if key not in self._known:
+                self._known[key] = compute()
+            return self._known[key]
 
     @property
     def entropy(self) -> float:
-        return self._entropy
+        return float(self._once("entropy", self.posterior.entropy))
 
     def p_acceptable(self, trace: Trace) -> float:
-        return self.posterior.p_acceptable(self.posterior.prior.vocabulary.of_trace(list(trace)))
+        return self.posterior.p_acceptable(self.posterior.prior.vocabulary.of_trace([frozenset(s) for s in trace]))
 
     def similarity(self, truth_mask: int) -> float:
-        if truth_mask not in self._similarities:
-            truth = self.domain.clause_space.clauses_of(truth_mask)
-            self._similarities[truth_mask] = float(expected_similarity(self.posterior, truth))
-        return self._similarities[truth_mask]
+        truth = self.domain.clause_space.clauses_of(truth_mask)
+        return float(self._once(("similarity", truth_mask), lambda: expected_similarity(self.posterior, truth)))
 
-    @cached_property
     def _map(self) -> tuple[int, float]:
-        best = map_formula(self.posterior)
-        space = self.domain.clause_space
-        mask = 0
-        for clause in best.formula.clauses(self.posterior.prior):
-            mask |= space.bit(clause)
-        return mask, math.exp(best.log_probability)
+        def compute() -> tuple[int, float]:
+            best = map_formula(self.posterior)
+            space = self.domain.clause_space
+            mask = 0
+            for clause in best.formula.clauses(self.posterior.prior):
+                mask |= space.bit(clause)
+            return mask, math.exp(best.log_probability)
+
+        return self._once("map", compute)
 
     @property
     def map_mask(self) -> int:
-        return self._map[0]
+        return self._map()[0]
 
     @property
     def map_probability(self) -> float:
-        return self._map[1]
+        return self._map()[1]
 
     def top(self, k: int) -> list[tuple[int, float]]:
-        return [self._map] if k > 0 else []
-
-    @cached_property
-    def _marginals(self) -> dict[Clause, float]:
-        found = {Clause(kind, first, second): p for (kind, first, second), p in self.posterior.marginals().items()}
-        # A prior without G clauses (chains-2019) never forbids: those clauses have marginal 0.
-        return {c: found.get(c, 0.0) for c in self.domain.clause_space.clauses}
+        return [self._map()] if k > 0 else []
 
     def marginals(self) -> dict[Clause, float]:
-        return dict(self._marginals)
+        def compute() -> dict[Clause, float]:
+            found = {Clause(kind, first, second): p for (kind, first, second), p in self.posterior.marginals().items()}
+            # A prior without G clauses (chains-2019) never forbids: those clauses have marginal 0.
+            return {c: found.get(c, 0.0) for c in self.domain.clause_space.clauses}
+
+        return dict(self._once("marginals", compute))
 
 
 # ---------------------------------------------------------------- beliefs

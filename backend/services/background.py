@@ -23,6 +23,7 @@ from collections.abc import Callable
 from typing import Any, TypeGuard
 
 from ..core import learner_seam as seam
+from ..core import session as core
 from ..db import jobs as job_rows
 from ..db import recording_rows
 from ..db import repository as repo
@@ -160,24 +161,28 @@ def plan_ahead(ctx: Context, job: job_rows.ClaimedJob) -> None:
     if position_of(state_json)[0] not in ROBOT_TURNS:
         return
     key = robot_key_of(job)
+    state = session_of(state_json)
+    exact = seam.path_of(state.config.task) == "exact"
 
-    def plan(table_lock: bool) -> None:
+    def plan(on_learner_thread: bool) -> None:
         step = ctx.planner.step(state_json)
+        if on_learner_thread and step.kind == "test":  # the final belief's MAP, for the debriefing (a minute at ten)
+            c = state.config
+            _ = seam.belief_after(c.task, c.prior, c.flip_rate, core.learning_verdicts(state)).map_mask
         if ctx.robot.works_in_background and step.robot_execution is not None:
             rid = RecordingId(uid, task_index, step.kind, step.index)
-            if not table_lock:
+            if not on_learner_thread:  # a job runner holds the table's lock already
                 executions.plan(ctx, key, rid, list(step.robot_execution.events), speed)
                 return
-            with ctx.runtime.table_lock(job.participant_id, job.task_index):  # as a job holds it (one at a time)
+            with ctx.runtime.table_lock(job.participant_id, job.task_index):  # one job of a table at a time
                 executions.plan(ctx, key, rid, list(step.robot_execution.events), speed)
 
     # Past five objects a plan takes seconds to minutes: on the learner's thread, so that no job runner (and no
     # other participant's placement or execution) waits for it. If it is lost (a restart), the request that
     # starts the execution makes it (services.teaching.start_execution, outside any transaction).
-    if seam.path_of(session_of(state_json).config.task) == "exact" and ctx.runtime.think(
-            _logged(lambda: plan(table_lock=True))) is not None:
+    if exact and ctx.runtime.think(_logged(lambda: plan(on_learner_thread=True))) is not None:
         return
-    plan(table_lock=False)  # a job runner holds the table's lock already
+    plan(on_learner_thread=False)
 
 
 def _logged(call: Callable[[], None]) -> Callable[[], None]:

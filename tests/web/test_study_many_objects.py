@@ -250,7 +250,6 @@ def exact_from_four(monkeypatch: pytest.MonkeyPatch) -> Iterator[None]:
 def test_forced_onto_the_exact_path_a_four_object_study_agrees_with_the_enumerating_learner(
         exact_from_four: None, app_client: Any) -> None:
     from tableteach.core import learner_seam as seam
-    from tableteach.core.executions import execution_graph
     from tableteach.core.puns import node_acceptance
 
     objects = [o for o in SEVEN_OBJECTS if o["name"] in FOUR_NAMES]
@@ -302,7 +301,6 @@ def test_forced_onto_the_exact_path_a_four_object_study_agrees_with_the_enumerat
         assert math.isclose(m["p"], final.marginals()[clause], abs_tol=1e-9)
     # The robot's executions: each query's P(acceptable) is the enumerated one of that execution, and the test
     # (min-regret) reaches the enumerated best P(acceptable) over every execution.
-    graph = execution_graph(get_domain(task))
     started = [e for e in events if e["kind"] == "execution_started"]
     assert [e["step_kind"] for e in started] == ["query"] * 3 + ["test"]
     for k, e in enumerate(started):
