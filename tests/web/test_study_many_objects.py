@@ -8,6 +8,7 @@ import csv
 import io
 import json
 import math
+import re
 import zipfile
 from collections.abc import Iterator
 from typing import Any
@@ -201,6 +202,9 @@ def test_a_participant_teaches_a_seven_object_study_and_every_view_holds_the_exa
     assert len(rows) == 5 and all(r["map_formula"] == r["study_map_formula"] for r in rows)
     assert all(abs(float(r["similarity"]) - float(r["study_similarity"])) < 1e-9 for r in rows)
     assert all(abs(float(r["entropy"]) - float(r["study_entropy"])) < 1e-9 for r in rows)
+    capsys.readouterr()
+    refused = main(["replay", str(archive), "--learner", "flip=0.1", "--out", str(tmp_path / "flip"), "--no-progress"])
+    assert refused == 2 and "noise-aware learner (flip rate 0.1) is not available past 5" in capsys.readouterr().err
 
 
 def test_past_five_objects_a_study_offers_only_the_exact_learners_settings_and_takes_up_to_ten(
@@ -219,6 +223,14 @@ def test_past_five_objects_a_study_offers_only_the_exact_learners_settings_and_t
     assert picture.status_code == 200
     for name in ("lunch box", "saucer", "knife", "glass"):
         assert name in picture.text
+    # Nine labels on Table B (the mug is forbidden: named under it): none covers another (a label moved off its object has a line to it).
+    tags = [tuple(float(v) for v in m) for m in re.findall(
+        r'<rect x="([-\d.]+)" y="([-\d.]+)" width="([\d.]+)" height="([\d.]+)" rx="7" fill="#ffffff"', picture.text)]
+    assert len(tags) == 9
+    for i, (x, y, w, h) in enumerate(tags):
+        for x2, y2, w2, h2 in tags[:i]:
+            assert x + w <= x2 or x2 + w2 <= x or y + h <= y2 or y2 + h2 <= y, (x, y, x2, y2)
+    assert picture.text.count("<line ") >= 1
 
 
 FOUR_NAMES = ["lunch_box", "apple", "napkin", "spoon"]
