@@ -136,7 +136,7 @@ def goal_svg(spec: SceneSpec, title: str, *, shown: frozenset[str] | None = None
                cy - o.slot.y * 10) for o in drawn]
     area = (PAD, TITLE + PAD, PAD + width_mm, TITLE + PAD + depth_mm)
     spots = place_labels(labels, area)
-    for (text, x, y), (lx, ly) in zip(labels, spots, strict=True):
+    for (_text, x, y), (lx, ly) in zip(labels, spots, strict=True):
         if (lx, ly) != (x, y):  # a label moved off its object points at it
             parts.append(f'<line x1="{x:.1f}" y1="{y:.1f}" x2="{lx:.1f}" y2="{ly:.1f}" stroke="#333333" '
                          'stroke-width="1.5"/>')

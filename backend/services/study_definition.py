@@ -344,12 +344,13 @@ def _object_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
     objects = spec.get("objects")
     if not isinstance(objects, list) or not objects:
         return
-    if ENUMERATED_UP_TO < len(objects) <= MAX_OBJECTS:
-        settings = {"prior": spec.get("prior", core.DEFAULT_PRIOR), "flip_rate": spec.get("flip_rate", 0.0),
-                    "criterion": spec.get("criterion", "min-regret")}
-        if settings["prior"] in NAMED_PRIORS and isinstance(settings["flip_rate"], (int, float)) \
-                and settings["criterion"] in CRITERIA:
-            for field, why in exact_problems(**settings):
+    if ENUMERATED_UP_TO < len(objects) <= MAX_OBJECTS:  # the exact learner's settings only
+        prior = spec.get("prior", core.DEFAULT_PRIOR)
+        flip_rate = spec.get("flip_rate", 0.0)
+        criterion = spec.get("criterion", "min-regret")
+        if isinstance(prior, str) and prior in NAMED_PRIORS and isinstance(criterion, str) and criterion in CRITERIA \
+                and isinstance(flip_rate, (int, float)) and not isinstance(flip_rate, bool):  # else the model says
+            for field, why in exact_problems(prior, float(flip_rate), criterion):
                 yield field, f"{why} ({len(objects)} objects given)"
     valid = True
     seen: dict[str, int] = {}

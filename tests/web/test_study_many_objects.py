@@ -223,7 +223,8 @@ def test_past_five_objects_a_study_offers_only_the_exact_learners_settings_and_t
     assert picture.status_code == 200
     for name in ("lunch box", "saucer", "knife", "glass"):
         assert name in picture.text
-    # Nine labels on Table B (the mug is forbidden: named under it): none covers another (a label moved off its object has a line to it).
+    # Nine labels on Table B (the mug is forbidden: named under it): none covers another (a label moved off its
+    # object has a line to it).
     tags = [tuple(float(v) for v in m) for m in re.findall(
         r'<rect x="([-\d.]+)" y="([-\d.]+)" width="([\d.]+)" height="([\d.]+)" rx="7" fill="#ffffff"', picture.text)]
     assert len(tags) == 9
