@@ -17,7 +17,7 @@ from ..core import session as core
 from ..core.domain import get_domain
 from ..db import analysis_queries as aq
 from ..db import repository as repo
-from ..db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
+from ..db.tables import EventRow, utcnow
 from ..errors import NotFound
 from ..recording_store import RecordingId
 from .consistency import FLAG_BELOW, participant_consistency, session_consistency
@@ -98,11 +98,10 @@ def _curve_of(state_json: str, truth_formula: str | None) -> tuple[list[float], 
     return ([b.entropy for b in beliefs], [None if truth is None else b.similarity(truth) for b in beliefs])
 
 
-def _task_steps(ts: TaskSessionRow, study: StudyRow) -> list[dict[str, Any]]:
+def _task_steps(state_json: str, truth: str | None) -> list[dict[str, Any]]:
     """Fresh copies of the cached summaries (callers may change them)."""
-    truth = study.tasks[ts.task_index].get("ground_truth")
     return [{**step, "top": [dict(t) for t in step["top"]], "marginals": [dict(m) for m in step["marginals"]]}
-            for step in _step_summaries(ts.state_json, truth, TOP_K)]
+            for step in _step_summaries(state_json, truth, TOP_K)]
 
 
 # ====================================================================== one participant's history
@@ -169,9 +168,8 @@ def participant_history(ctx: Context, study_id: str, participant_id: int) -> dic
                 "task_index": ts.task_index, "task": task["key"], "name": task.get("name"),
                 "ground_truth": truth,
                 "ground_truth_description": None if truth is None else space.describe(space.mask_of_formula(truth)),
-                "step": _step_of(state), "steps": _task_steps(ts, study),
+                "step": _step_of(state), "steps": ts.state_json,  # the beliefs: below, outside the transaction
                 "executions": [x for x in executions if x["task_index"] == ts.task_index],
-                "consistency": _consistency_view(ts.state_json),
             })
         items = {item["id"]: item for item in study.questionnaire}
         answers = [
@@ -180,13 +178,18 @@ def participant_history(ctx: Context, study_id: str, participant_id: int) -> dic
             for e in events if e.kind == "questionnaire"
             for item_id, answer in (e.payload.get("answers") or {}).items()
         ]
-        return {
+        out = {
             "study_id": study_id,
             "participant": {**participant_row(p, ctx.settings, now), "seed": p.seed},
             "tasks": tasks,
             "events": [_event_view(e) for e in events],
             "questionnaire": answers,
         }
+    for task in tasks:  # past five objects each step's belief takes seconds: no transaction waits for them
+        state_json = task["steps"]
+        task["steps"] = _task_steps(state_json, task["ground_truth"])
+        task["consistency"] = _consistency_view(state_json)
+    return out
 
 
 def _consistency_view(state_json: str) -> dict[str, Any]:
