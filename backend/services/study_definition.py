@@ -30,9 +30,9 @@ from .page_settings import ConsentFormIn, check_page_settings
 from .plain_words import field_errors, number_ranges, shown
 
 MAX_BALANCED_TASKS = 5  # 5! = 120 orders, each crossed with every condition
-# Up to five objects a study's learner enumerates every formula (core.hypotheses); past five the exact factorised
-# learner answers (core.exact, through core.learner_seam), which offers fewer settings (seam.exact_problems).
-MAX_STUDY_OBJECTS = 10
+# A study takes MIN_OBJECTS to MAX_OBJECTS objects (scenes.spec). Up to five its learner enumerates every formula
+# (core.hypotheses); past five the exact factorised learner answers (core.exact, through core.learner_seam), which
+# offers fewer settings (learner_seam.exact_problems).
 MAX_PLACES = 100_000  # participants a study may take
 CODE_PATTERN = r"^[A-Za-z0-9_\-]+$"
 ID_PATTERN = r"^[A-Za-z0-9_\-]+$"
@@ -315,7 +315,7 @@ def _task_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
             yield where, f"{key} has a fixed ground truth; leave this empty"
         elif key == "custom" and not formula:
             yield where, f"a custom task needs a formula over {', '.join(objects)}, e.g. {example}"
-        elif key == "custom" and formula is not None and own and (names is None or len(names) > MAX_STUDY_OBJECTS):
+        elif key == "custom" and formula is not None and own and names is None:
             continue  # the objects' own problems come first
         elif key == "custom" and formula is not None and not re.match(formula_pattern(study_task(names)), formula):
             yield where, f"must be {hint}, got {shown(formula)}{_unknown_objects(formula, objects)}"
