@@ -116,11 +116,6 @@ class LearnerBelief(ABC):
     def marginals(self) -> dict[Clause, float]:
         """P(clause in the formula) for every template clause of the task."""
 
-    @property
-    def lists_formulas(self) -> bool:
-        """Whether ``top`` lists the k most probable formulas (else only the MAP)."""
-        return self.path == "enumerating"
-
     def map_similarity(self, truth_mask: int) -> float:
         """Similarity of the MAP formula to the truth."""
         return mask_similarity(self.domain.clause_space, self.map_mask, truth_mask)
