@@ -31,7 +31,7 @@ DEMONSTRATIONS = (["lunch_box", "spoon", "napkin"], ["spoon", "lunch_box", "napk
 
 def seven_study(**extra: Any) -> dict[str, Any]:
     """A lunch-packing study of seven objects: two demonstrations, two active queries, one test."""
-    return lunch_study(objects=SEVEN_OBJECTS, n_demonstrations=2, n_queries=2, n_tests=1, **extra)
+    return lunch_study(**{"objects": SEVEN_OBJECTS, "n_demonstrations": 2, "n_queries": 2, "n_tests": 1, **extra})
 
 
 def _created(client: Any, spec: dict[str, Any]) -> str:
@@ -322,3 +322,26 @@ def test_forced_onto_the_exact_path_a_four_object_study_agrees_with_the_enumerat
         assert math.isclose(float(e["p_acceptable"]), before.p_acceptable(trace), abs_tol=1e-9)
     best = float(node_acceptance(final.belief).max())
     assert math.isclose(float(started[-1]["p_acceptable"]), best, abs_tol=1e-9)
+
+
+def test_past_five_objects_the_robots_turn_is_planned_on_the_learner_thread_not_a_job_runner(
+        app_client: Any) -> None:
+    from tableteach.services.planning import Planner, step_of
+
+    from ..waiting import wait_until
+    from .test_planning import RecordingPlan
+
+    plan = RecordingPlan()
+    app_client.ctx.planner = Planner(plan)
+    token, state = to_teaching(app_client, _created(app_client, seven_study(n_demonstrations=1)))
+    h = bearer(token)
+    for obj in DEMONSTRATIONS[0]:
+        assert app_client.post("/api/v1/me/placements", json={"object": obj}, headers=h).status_code == 200
+    state = app_client.post("/api/v1/me/demonstration/finish", headers=h).json()
+    assert state["step"]["kind"] == "query"
+    wait_until(lambda: bool(plan.calls), timeout=120, what="the query's plan")
+    assert plan.calls[0][1].startswith("runtime-learner")  # job runners stay free for others' placements
+    response = app_client.post("/api/v1/me/execution", headers=h)
+    assert response.status_code == 200, response.text
+    assert response.json()["execution"]["events"] == list(step_of(plan.calls[0][0]).robot_execution.events)
+    assert len(plan.calls) == 1  # the request waited for (or found) the plan made ahead
