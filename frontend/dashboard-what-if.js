@@ -42,7 +42,7 @@ export function consistencyNote(task) {
 }
 
 function chart(task) {
-  const series = task.learners.map((l, i) => ({
+  const series = task.learners.filter((l) => !l.unavailable).map((l, i) => ({
     name: l.learner === "study" ? "study's learner" : l.learner, color: PALETTE[i % PALETTE.length], dashed: l.learner !== "study",
     points: l.steps.map((s) => ({ x: s.step, y: task.has_ground_truth ? s.similarity : s.entropy,
       label: `${l.learner} after step ${s.step}: ${fixed(task.has_ground_truth ? s.similarity : s.entropy)}` })),
@@ -58,6 +58,11 @@ function finals(task) {
     h("thead", {}, h("tr", {}, ["Learner", "Prior", "Flip rate", "Data", "Final similarity", "vs study", "Entropy", "MAP formula"]
       .map((c) => h("th", {}, c)))),
     h("tbody", {}, task.learners.map((l) => {
+      if (l.unavailable) {  // e.g. the noise-aware learner past five objects: said, not drawn
+        return h("tr", { "data-learner": l.learner, "data-unavailable": "true" },
+          h("td", {}, l.learner), h("td", {}, l.prior), h("td", { class: "num" }, fixed(l.flip_rate, 2)), h("td", {}, l.data),
+          h("td", { colspan: 4, class: "muted" }, `Not available: ${l.unavailable}`));
+      }
       const last = l.steps.at(-1);
       const diff = last.similarity === null ? null : last.similarity - study.similarity;
       return h("tr", { "data-learner": l.learner }, h("td", {}, l.learner === "study" ? "the study's" : l.learner),

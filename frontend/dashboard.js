@@ -754,7 +754,18 @@ function beliefBlock(step, task, name) {
       task.ground_truth ? h("div", {}, h("b", {}, num(step.map_similarity)), h("span", {}, "MAP similarity")) : null),
     h("table", { class: "top" }, h("tbody", {}, step.top.map((f, i) => h("tr", {},
       h("td", { class: "bar-cell" }, bar(f.p), h("span", { class: "bar-label" }, pct(f.p))),
-      h("td", {}, h("div", { class: "description" }, f.description), h("div", { class: "formula" }, f.formula)))))));
+      h("td", {}, h("div", { class: "description" }, f.description), h("div", { class: "formula" }, f.formula)))))),
+    step.learner === "exact" ? exactMarginals(step, bar) : null);
+}
+
+/** Past five objects the exact learner lists no formulas: the MAP above, then the clauses most probably in the task. */
+function exactMarginals(step, bar) {
+  return h("div", { class: "marginals", "data-learner": "exact" },
+    h("p", { class: "muted small" }, "Past five objects the learner is the exact one: it lists no formulas, so above is "
+      + "the most probable formula alone. The clauses most probably in the task:"),
+    h("table", { class: "top" }, h("tbody", {}, step.marginals.map((m) => h("tr", {},
+      h("td", { class: "bar-cell" }, bar(m.p), h("span", { class: "bar-label" }, pct(m.p))),
+      h("td", {}, h("div", { class: "formula" }, m.clause)))))));
 }
 
 // ---------------------------------------------------------------- replay

@@ -149,7 +149,10 @@ export function tablePicture(layout, { onPick = null } = {}) {
     for (const item of items) {
       const w = item.text.length * size * 0.58;
       if (item.right) item.x += w / 2 + size * 0.5; // beside the robot's base
-      const tries = item.object ? [0, 1.3, -1.3, 2.6, -2.6, 3.9].map((k) => [item.x, item.cy + k * size]) : [[item.x, item.cy]];
+      // Beside as well as below and above: ten objects on a phone's small table leave no free row for some names.
+      const tries = item.object ? [0, 1.3, -1.3, 2.6, -2.6, 3.9].map((k) => [item.x, item.cy + k * size])
+        .concat([0, 1.3, -1.3].flatMap((k) => [1, -1].map((s) => [item.x + s * (w + size), item.cy + k * size])))
+        : [[item.x, item.cy]];
       const inside = (x) => Math.min(Math.max(x, w / 2 + size * 0.4), width - w / 2 - size * 0.4); // within the picture
       const [cx, cy] = (tries.find(([tx, ty]) => free(box(inside(tx), ty, w))) ?? tries[0]).map((v, i) => (i ? v : inside(v)));
       const b = box(cx, cy, w);

@@ -19,7 +19,7 @@ import numpy as np
 from .ltl import Always, And, Const, Eventually, Formula, Not, Prop, Until, conj, parse, to_text
 from .ltl_semantics import Trace
 
-MAX_CLAUSES = 63
+MAX_CLAUSES = 63  # what a 64-bit numpy mask holds: the enumerated spaces' limit (core.hypotheses), not a ClauseSpace's
 
 
 @dataclass(frozen=True)
@@ -61,17 +61,21 @@ class ClauseSpace:
         clauses = [Clause("G", p) for p in self.forbiddable]
         clauses += [Clause("F", p) for p in self.orderable]
         clauses += [Clause("U", a, b) for a in self.orderable for b in self.orderable if a != b]
-        if len(clauses) > MAX_CLAUSES:
-            raise ValueError(
-                f"{len(clauses)} clauses do not fit a 64-bit mask; expected at most {MAX_CLAUSES} "
-                f"(fewer orderable propositions)"
-            )
         object.__setattr__(self, "clauses", tuple(clauses))
 
     @property
     def n_clauses(self) -> int:
         """Number of clauses in the universe."""
         return len(self.clauses)
+
+    def check_fits_numpy(self) -> None:
+        """ValueError unless every mask of this space fits a 64-bit numpy integer (the enumerated learner's arrays;
+        masks as Python integers, as used here, have no limit)."""
+        if self.n_clauses > MAX_CLAUSES:
+            raise ValueError(
+                f"{self.n_clauses} clauses do not fit a 64-bit mask; expected at most {MAX_CLAUSES} "
+                f"(fewer orderable propositions)"
+            )
 
     @property
     def n_unary(self) -> int:

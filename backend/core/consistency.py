@@ -14,6 +14,7 @@ import numpy as np
 
 from . import session as core
 from .belief import Belief
+from .learner_seam import belief_after, verdict_probability
 from .ltl_semantics import Trace
 
 Labelled = tuple[Trace, bool, bool]  # (trace, acceptable, is_verdict)
@@ -38,18 +39,17 @@ def verdict_probabilities(prior: Belief, data: Sequence[Labelled], flip_rate: fl
 
 def session_verdict_probabilities(state: core.SessionState) -> tuple[list[float | None], list[float]]:
     """A session's verdict probabilities: per learning record (None for a demonstration), then per assessed test
-    (against the final belief, which tests do not change)."""
-    beliefs = core.beliefs_by_step(state)
-    learning = [None if r.kind != "query" else _p_verdict(beliefs[k], r.trace, bool(r.acceptable))
+    (against the final belief, which tests do not change); asked through the learner seam, so past five objects
+    the exact learner's P(acceptable) of each trace under the belief just before its verdict."""
+    c = state.config
+    data = core.learning_verdicts(state)
+    needed = [k for k, r in enumerate(state.learning_records) if r.kind == "query"]
+    tests = [r for r in state.records if r.kind == "test" and r.acceptable is not None]
+    beliefs = {k: belief_after(c.task, c.prior, c.flip_rate, data[:k]) for k in needed + ([len(data)] if tests else [])}
+    learning = [None if r.kind != "query" else verdict_probability(beliefs[k], r.trace, bool(r.acceptable))
                 for k, r in enumerate(state.learning_records)]
-    tests = [_p_verdict(beliefs[-1], r.trace, r.acceptable) for r in state.records
-             if r.kind == "test" and r.acceptable is not None]
-    return learning, tests
-
-
-def _p_verdict(belief: Belief, trace: Trace, acceptable: bool) -> float:
-    p = belief.p_acceptable(trace)
-    return p if acceptable else 1.0 - p
+    final = [verdict_probability(beliefs[len(data)], r.trace, bool(r.acceptable)) for r in tests]
+    return learning, final
 
 
 def consistency_score(probabilities: Sequence[float | None]) -> float | None:

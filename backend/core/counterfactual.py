@@ -15,6 +15,7 @@ from typing import Any, Iterator, Sequence
 
 from .belief import Belief, check_flip_rate
 from .domain import get_domain
+from .learner_seam import belief_after, check_exact, path_of
 from .priors import NAMED_PRIORS
 from .session import Verdicts, noisy_belief_after
 
@@ -95,9 +96,17 @@ def beliefs_by_step(learner: LearnerSpec, data: Verdicts, *, task: str, study_pr
 
 def step_views(learner: LearnerSpec, data: Verdicts, truth_mask: int | None, *, task: str, study_prior: str,
                study_flip_rate: float = 0.0) -> list[dict[str, Any]]:
-    """Per step (0: the prior): the learner's similarity to the truth (None if unknown), entropy, MAP formula."""
+    """Per step (0: the prior): the learner's similarity to the truth (None if unknown), entropy, MAP formula,
+    asked through the learner seam (past five objects the exact learner's; ValueError names a setting it does not
+    offer, e.g. a flip rate)."""
     space = get_domain(task).clause_space
-    return [{"step": step, "similarity": None if truth_mask is None else belief.similarity(truth_mask),
-             "entropy": belief.entropy + 0.0, "map_formula": space.text_of(belief.map_mask)}
-            for step, belief in enumerate(beliefs_by_step(learner, data, task=task, study_prior=study_prior,
-                                                          study_flip_rate=study_flip_rate))]
+    prior, flip = learner.resolved(study_prior, study_flip_rate)
+    if path_of(task) == "exact":
+        check_exact(prior, flip)
+    out = []
+    for step in range(len(data) + 1):
+        seen = tuple(d for d in data[:step] if learner.data == "all" or not d[2])
+        belief = belief_after(task, prior, flip, seen)
+        out.append({"step": step, "similarity": None if truth_mask is None else belief.similarity(truth_mask),
+                    "entropy": belief.entropy + 0.0, "map_formula": space.text_of(belief.map_mask)})
+    return out

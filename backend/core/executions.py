@@ -46,6 +46,7 @@ class ExecutionGraph:
 def execution_graph(domain: Domain) -> ExecutionGraph:
     """Build (once per domain) the execution DAG by breadth-first search from the empty execution."""
     space = domain.clause_space
+    space.check_fits_numpy()
     props = domain.propositions
     orderable = set(domain.orderable)
     root: NodeKey = ((), frozenset())

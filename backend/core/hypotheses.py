@@ -45,6 +45,7 @@ class HypothesisSpace:
 
     def __post_init__(self) -> None:
         space = self.domain.clause_space
+        space.check_fits_numpy()
         self.masks = np.ascontiguousarray(self.masks, dtype=np.uint64)
         self.nconj = popcount(self.masks)
         unary = np.uint64(space.unary_mask)
@@ -283,6 +284,7 @@ def _satisfiable(domain: Domain, masks: np.ndarray) -> np.ndarray:
 def build_space(domain: Domain, prior_name: str, spec: PriorSpec | None = None) -> HypothesisSpace:
     """Enumerate a prior over a domain's clause sets exactly (merging equal clause sets)."""
     spec = spec or get_prior(prior_name)
+    domain.clause_space.check_fits_numpy()
     n = len(domain.orderable)
     structures = order_structures(spec, n)
     u_masks = np.array([_pairs_mask(domain, pairs) for pairs in structures], dtype=np.uint64)

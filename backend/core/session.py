@@ -25,7 +25,8 @@ from .domain import get_domain
 from .hypotheses import get_space
 from .priors import DEFAULT_PRIOR, NAMED_PRIORS
 from .puns import CRITERIA
-from .queries import Execution, plan_execution, query
+from .learner_seam import robot_plan, robot_query
+from .queries import Execution
 
 PROTOCOLS = ("active", "random", "batch")
 PHASES = ("practice", "demonstration", "query", "test", "done")
@@ -261,12 +262,15 @@ def next_step(state: SessionState) -> Step:
     """What happens next; robot turns come with the robot's execution (deterministic per seed)."""
     c = state.config
     kind, index, total = position(state)
+    # Through the learner seam: the enumerating learner up to five objects (as before), the exact one past five.
     if kind == "query":
         strategy = "active" if c.protocol == "active" else "random"
-        execution, p = query(belief(state), strategy, _rng(c, kind, index))
+        execution, p = robot_query(c.task, c.prior, c.flip_rate, learning_verdicts(state), strategy,
+                                   _rng(c, kind, index))
         return Step(kind, index, total, execution, p)
     if kind == "test":
-        execution, p = plan_execution(belief(state), c.criterion, _rng(c, kind, index))
+        execution, p = robot_plan(c.task, c.prior, c.flip_rate, learning_verdicts(state), c.criterion,
+                                  _rng(c, kind, index))
         return Step(kind, index, total, execution, p)
     return Step(kind, index, total)
 

@@ -55,9 +55,55 @@ def _shape(o: ObjectSpec, cx: float, cy: float) -> list[str]:
             'rx="4" fill="none" stroke="#000000" stroke-opacity="0.25" stroke-width="2"/>']
 
 
+Box = tuple[float, float, float, float]  # left, top, right, bottom
+
+
+def _tag_width(text: str) -> float:
+    return 0.58 * FONT * len(text) + 12
+
+
+def _box(text: str, x: float, y: float) -> Box:
+    width = _tag_width(text)
+    return (x - width / 2, y - FONT * 0.75, x + width / 2, y + FONT * 0.75)
+
+
+def _overlap(a: Box, b: Box, gap: float = 2.0) -> float:
+    """The area two boxes (grown by gap) share."""
+    w = min(a[2], b[2]) - max(a[0], b[0]) + gap
+    h = min(a[3], b[3]) - max(a[1], b[1]) + gap
+    return max(w, 0.0) * max(h, 0.0)
+
+
+def place_labels(labels: list[tuple[str, float, float]], area: Box) -> list[tuple[float, float]]:
+    """Where each label goes: on its object, or, where that would cover a label placed before it, the nearest spot
+    above, below or beside it (inside area) that covers none (else the one covering least). Crowded tables (up to
+    ten objects) stay legible; labels that fit stay centred on their objects."""
+    step = FONT * 1.5 + 3
+    placed: list[Box] = []
+    out = []
+    for text, x, y in labels:
+        half = _tag_width(text) / 2 + 6
+        offsets = [(0.0, k * step) for k in (0, -1, 1, -2, 2, -3, 3)]
+        offsets += [(sx * half, k * step) for k in (0, -1, 1) for sx in (1, -1)]
+        best: tuple[float, float, float] | None = None
+        for dx, dy in offsets:
+            box = _box(text, x + dx, y + dy)
+            if box[0] < area[0] or box[2] > area[2] or box[1] < area[1] or box[3] > area[3]:
+                continue
+            covered = sum(_overlap(box, other) for other in placed)
+            if best is None or covered < best[0]:
+                best = (covered, x + dx, y + dy)
+            if covered == 0:
+                break
+        bx, by = (x, y) if best is None else best[1:]
+        placed.append(_box(text, bx, by))
+        out.append((bx, by))
+    return out
+
+
 def _tag(text: str, x: float, y: float) -> list[str]:
     """A label with a white backing, centred at (x, y)."""
-    width = 0.58 * FONT * len(text) + 12
+    width = _tag_width(text)
     return [f'<rect x="{x - width / 2:.1f}" y="{y - FONT * 0.75:.1f}" width="{width:.1f}" height="{FONT * 1.5:.1f}" '
             'rx="7" fill="#ffffff" fill-opacity="0.92" stroke="#333333" stroke-width="1"/>',
             f'<text x="{x:.1f}" y="{y + FONT * 0.35:.1f}" text-anchor="middle" font-size="{FONT}">'
@@ -86,9 +132,16 @@ def goal_svg(spec: SceneSpec, title: str, *, shown: frozenset[str] | None = None
     drawn = [o for o in spec.objects if shown is None or o.name in shown]
     for o in drawn:
         parts += _shape(o, cx + o.slot.x * 10, cy - o.slot.y * 10)
-    for o in drawn:
-        text = _label(o.name) + (" (optional)" if o.name in optional else "")
-        parts += _tag(text, cx + o.slot.x * 10, cy - o.slot.y * 10)
+    labels = [(_label(o.name) + (" (optional)" if o.name in optional else ""), cx + o.slot.x * 10,
+               cy - o.slot.y * 10) for o in drawn]
+    area = (PAD, TITLE + PAD, PAD + width_mm, TITLE + PAD + depth_mm)
+    spots = place_labels(labels, area)
+    for (_text, x, y), (lx, ly) in zip(labels, spots, strict=True):
+        if (lx, ly) != (x, y):  # a label moved off its object points at it
+            parts.append(f'<line x1="{x:.1f}" y1="{y:.1f}" x2="{lx:.1f}" y2="{ly:.1f}" stroke="#333333" '
+                         'stroke-width="1.5"/>')
+    for (text, _x, _y), (lx, ly) in zip(labels, spots, strict=True):
+        parts += _tag(text, lx, ly)
     if forbidden:
         names = ", ".join(_label(o.name) for o in spec.objects if o.name in forbidden)
         parts.append(f'<text x="{width / 2:.1f}" y="{TITLE + 2 * PAD + depth_mm + 10:.1f}" text-anchor="middle" '

@@ -12,10 +12,12 @@ from __future__ import annotations
 import statistics
 from typing import Any
 
+from ..core import learner_seam as seam
 from ..core import session as core
+from ..core.domain import get_domain
 from ..db import analysis_queries as aq
 from ..db import repository as repo
-from ..db.tables import EventRow, StudyRow, TaskSessionRow, utcnow
+from ..db.tables import EventRow, utcnow
 from ..errors import NotFound
 from ..recording_store import RecordingId
 from .consistency import FLAG_BELOW, participant_consistency, session_consistency
@@ -23,6 +25,7 @@ from .context import Context, iso
 from .monitoring import (
     belief_view,
     FINISHED,
+    marginals_view,
     inactive_minutes,
     participant_row,
     study_participant,
@@ -78,15 +81,27 @@ def _step_summaries(state_json: str, truth_formula: str | None, top: int) -> lis
     return [
         {"step": step, "record": None if record is None else {
             "kind": record.kind, "acceptable": record.acceptable, "trace": [sorted(x) for x in record.trace]},
-         **belief_view(task, prior, data[:step], truth_formula, top, flip_rate)}
+         **belief_view(task, prior, data[:step], truth_formula, top, flip_rate),
+         "marginals": marginals_view(task, prior, data[:step], flip_rate)}
         for step, record in enumerate(records)
     ]
 
 
-def _task_steps(ts: TaskSessionRow, study: StudyRow) -> list[dict[str, Any]]:
+def _curve_of(state_json: str, truth_formula: str | None) -> tuple[list[float], list[float | None]]:
+    """Entropy and expected similarity after each learning step (what the curves need: no MAP, which past five
+    objects costs more than both)."""
+    state = session_of(state_json)
+    c = state.config
+    data = core.learning_verdicts(state)
+    truth = None if truth_formula is None else get_domain(c.task).clause_space.mask_of_formula(truth_formula)
+    beliefs = [seam.belief_after(c.task, c.prior, c.flip_rate, data[:step]) for step in range(len(data) + 1)]
+    return ([b.entropy for b in beliefs], [None if truth is None else b.similarity(truth) for b in beliefs])
+
+
+def _task_steps(state_json: str, truth: str | None) -> list[dict[str, Any]]:
     """Fresh copies of the cached summaries (callers may change them)."""
-    truth = study.tasks[ts.task_index].get("ground_truth")
-    return [{**step, "top": [dict(t) for t in step["top"]]} for step in _step_summaries(ts.state_json, truth, TOP_K)]
+    return [{**step, "top": [dict(t) for t in step["top"]], "marginals": [dict(m) for m in step["marginals"]]}
+            for step in _step_summaries(state_json, truth, TOP_K)]
 
 
 # ====================================================================== one participant's history
@@ -153,9 +168,8 @@ def participant_history(ctx: Context, study_id: str, participant_id: int) -> dic
                 "task_index": ts.task_index, "task": task["key"], "name": task.get("name"),
                 "ground_truth": truth,
                 "ground_truth_description": None if truth is None else space.describe(space.mask_of_formula(truth)),
-                "step": _step_of(state), "steps": _task_steps(ts, study),
+                "step": _step_of(state), "steps": ts.state_json,  # the beliefs: below, outside the transaction
                 "executions": [x for x in executions if x["task_index"] == ts.task_index],
-                "consistency": _consistency_view(ts.state_json),
             })
         items = {item["id"]: item for item in study.questionnaire}
         answers = [
@@ -164,13 +178,18 @@ def participant_history(ctx: Context, study_id: str, participant_id: int) -> dic
             for e in events if e.kind == "questionnaire"
             for item_id, answer in (e.payload.get("answers") or {}).items()
         ]
-        return {
+        out = {
             "study_id": study_id,
             "participant": {**participant_row(p, ctx.settings, now), "seed": p.seed},
             "tasks": tasks,
             "events": [_event_view(e) for e in events],
             "questionnaire": answers,
         }
+    for task in tasks:  # past five objects each step's belief takes seconds: no transaction waits for them
+        state_json = task["steps"]
+        task["steps"] = _task_steps(state_json, task["ground_truth"])
+        task["consistency"] = _consistency_view(state_json)
+    return out
 
 
 def _consistency_view(state_json: str) -> dict[str, Any]:
@@ -217,15 +236,15 @@ def learning_curves(ctx: Context, study_id: str, *, finished_only: bool = False,
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         study_tasks, study_conditions = list(study.tasks), list(study.conditions)
-        per_task: dict[int, list[dict[str, Any]]] = {i: [] for i in range(len(study_tasks))}
-        for ts, p in aq.study_task_sessions_with_participants(s, study_id=study_id, include_pilot=include_pilot):
-            if finished_only and p.stage != "done":
-                continue
-            steps = _step_summaries(ts.state_json, study_tasks[ts.task_index].get("ground_truth"), TOP_K)
-            per_task[ts.task_index].append({
-                "participant_id": p.id, "condition": p.condition, "finished": p.stage == "done",
-                "entropy": [x["entropy"] for x in steps], "similarity": [x["similarity"] for x in steps],
-            })
+        stored = [(ts.task_index, ts.state_json, p.id, p.condition, p.stage == "done")
+                  for ts, p in aq.study_task_sessions_with_participants(s, study_id=study_id,
+                                                                        include_pilot=include_pilot)
+                  if not finished_only or p.stage == "done"]
+    per_task: dict[int, list[dict[str, Any]]] = {i: [] for i in range(len(study_tasks))}
+    for task_index, state_json, pid, condition, finished in stored:  # outside the transaction: beliefs take time
+        entropy, similarity = _curve_of(state_json, study_tasks[task_index].get("ground_truth"))
+        per_task[task_index].append({"participant_id": pid, "condition": condition, "finished": finished,
+                                     "entropy": entropy, "similarity": similarity})
     tasks = []
     for index, series in per_task.items():
         task = study_tasks[index]

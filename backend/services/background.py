@@ -13,14 +13,17 @@ nothing the first run stored: labels and plans are stored only where they are mi
 - finish_execution: at the stored end of an execution, it is recorded as finished (event
   `execution_finished`).
 - plan_ahead: the robot's next turn is planned (and, for a robot that records, worked out) before the
-  participant asks for it.
+  participant asks for it; past five objects on the runtime's learner thread, not the job runner's.
 """
 
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any, TypeGuard
 
+from ..core import learner_seam as seam
+from ..core import session as core
 from ..db import jobs as job_rows
 from ..db import recording_rows
 from ..db import repository as repo
@@ -28,7 +31,7 @@ from ..db.tables import ParticipantRow, StudyRow, TaskSessionRow, utcnow
 from ..recording_store import VISER_SUFFIX, RecordingId
 from . import executions, placements
 from .context import Context
-from .planning import ROBOT_TURNS, position_of
+from .planning import ROBOT_TURNS, position_of, session_of
 from .runtime import FINISH_EXECUTION, PLAN_AHEAD, SETTLE, WORK_OUT, Handler
 from .state import Action, current_task, sync_execution, table_key
 
@@ -157,10 +160,39 @@ def plan_ahead(ctx: Context, job: job_rows.ClaimedJob) -> None:
         uid, speed = participant.uid, float(study.robot_speed or 1.0)
     if position_of(state_json)[0] not in ROBOT_TURNS:
         return
-    step = ctx.planner.step(state_json)
-    if ctx.robot.works_in_background and step.robot_execution is not None:
-        rid = RecordingId(uid, task_index, step.kind, step.index)
-        executions.plan(ctx, robot_key_of(job), rid, list(step.robot_execution.events), speed)
+    key = robot_key_of(job)
+    state = session_of(state_json)
+    exact = seam.path_of(state.config.task) == "exact"
+
+    def plan(on_learner_thread: bool) -> None:
+        step = ctx.planner.step(state_json)
+        if on_learner_thread and step.kind == "test":  # the final belief's MAP, for the debriefing (a minute at ten)
+            c = state.config
+            _ = seam.belief_after(c.task, c.prior, c.flip_rate, core.learning_verdicts(state)).map_mask
+        if ctx.robot.works_in_background and step.robot_execution is not None:
+            rid = RecordingId(uid, task_index, step.kind, step.index)
+            if not on_learner_thread:  # a job runner holds the table's lock already
+                executions.plan(ctx, key, rid, list(step.robot_execution.events), speed)
+                return
+            with ctx.runtime.table_lock(job.participant_id, job.task_index):  # one job of a table at a time
+                executions.plan(ctx, key, rid, list(step.robot_execution.events), speed)
+
+    # Past five objects a plan takes seconds to minutes: on the learner's thread, so that no job runner (and no
+    # other participant's placement or execution) waits for it. If it is lost (a restart), the request that
+    # starts the execution makes it (services.teaching.start_execution, outside any transaction).
+    if exact and ctx.runtime.think(_logged(lambda: plan(on_learner_thread=True))) is not None:
+        return
+    plan(on_learner_thread=False)
+
+
+def _logged(call: Callable[[], None]) -> Callable[[], None]:
+    """call, with a failure logged (a plan made ahead is a courtesy: the execution's request makes it otherwise)."""
+    def run() -> None:
+        try:
+            call()
+        except Exception:  # noqa: BLE001 - see docstring
+            log.exception("planning a robot turn ahead failed; the request that starts it plans it instead")
+    return run
 
 
 def robot_key_of(job: job_rows.ClaimedJob) -> str:

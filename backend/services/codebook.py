@@ -8,6 +8,7 @@ from collections.abc import Iterable, Iterator
 from typing import Any
 
 from ..core.domain import DINNER_OBJECTS
+from ..core.learner_seam import ENUMERATED_UP_TO, path_of
 from ..scenes.spec import SIZE_MEANING
 from .consistency import FLAG_BELOW
 from .context import Context
@@ -15,6 +16,7 @@ from .exports import EXPORT_COLUMNS, EXPORTS, export_rows
 from .outcomes import OUTCOME_WORDS
 from .instruments import INSTRUMENT_KINDS, INSTRUMENTS
 from .studies import get_study
+from .study_definition import study_task
 
 CODEBOOK_COLUMNS = ["file", "column", "type", "meaning", "units_or_levels", "likert_labels"]
 
@@ -169,6 +171,32 @@ MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
 }
 
 
+# What beliefs.csv's columns mean in a study with more than five objects: its learner is the exact factorised
+# one (core.exact, through core.learner_seam), which computes the same posterior without listing any formula.
+EXACT_NOTE = (f"; past {ENUMERATED_UP_TO} objects the exact factorised learner computes it without listing formulas "
+              "(docs/learner.md)")
+EXACT_MEANINGS: dict[str, dict[str, tuple[str, str, str]]] = {
+    "beliefs": {
+        "entropy": ("number", "entropy of the belief over canonical clause sets, exact" + EXACT_NOTE, "nats"),
+        "map_formula": ("text", "the most probable task formula, found exactly by a branch and bound" + EXACT_NOTE
+                        + "; among equally probable formulas the first found", "LTL over the template clauses"),
+        "similarity": ("number", "expected similarity of the belief to the ground truth E_P[L(phi, phi*)], exact"
+                       + EXACT_NOTE + " (empty when the truth is unknown)", "0-1"),
+        "top1_formula": ("text", f"past {ENUMERATED_UP_TO} objects: the most probable formula (map_formula); the "
+                         "exact learner lists no other formula", ""),
+        "top1_p": ("number", "the most probable formula's exact posterior probability", "probability 0-1"),
+        **{f"top{i}_formula": ("text", f"empty past {ENUMERATED_UP_TO} objects: the exact learner does not list "
+                               "formulas beyond the most probable one (the dashboard shows the clauses most probably "
+                               "in the formula instead)", "") for i in range(2, 6)},
+        **{f"top{i}_p": ("number", f"empty past {ENUMERATED_UP_TO} objects (see top{i}_formula)", "probability 0-1")
+           for i in range(2, 6)},
+        "p_verdict": ("number", "teacher consistency of a query step: the probability the belief just before it "
+                      "gave to the verdict the participant gave, P(acceptable) of the trace or 1 minus it, exact"
+                      + EXACT_NOTE + " (empty for the prior and demonstrations)", "probability 0-1"),
+    },
+}
+
+
 def _item_rows(questionnaire: list[dict[str, Any]]) -> Iterator[list[Any]]:
     for item in questionnaire:
         kind = item["kind"]
@@ -202,10 +230,12 @@ def codebook_rows(ctx: Context, study_id: str) -> list[list[Any]]:
     """The codebook of a study's exports, header first (NotFound for an unknown study)."""
     study = get_study(ctx, study_id)
     own = study.get("objects") or []
+    exact = path_of(study_task([o["name"] for o in own])) == "exact"
     rows = [CODEBOOK_COLUMNS]
     for name in EXPORTS:
+        meanings = {**MEANINGS[name], **(EXACT_MEANINGS.get(name, {}) if exact else {})}
         for column in EXPORT_COLUMNS[name]:
-            kind, meaning, units = MEANINGS[name].get(column) or COMMON[column]
+            kind, meaning, units = meanings.get(column) or COMMON[column]
             if own and units == DINNER_OBJECT_LEVELS:
                 units = ", ".join(o["name"] for o in own)  # the study's own objects
             rows.append([f"{name}.csv", column, kind, meaning, units, ""])

@@ -101,6 +101,9 @@ def _seconds(start: Any, end: Any) -> float | None:
 
 def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) -> Iterator[list[Any]]:
     yield EXPORT_COLUMNS[name]
+    if name == "beliefs":
+        yield from _belief_rows(ctx, study_id, include_pilot)
+        return
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         if name == "participants":
@@ -117,8 +120,6 @@ def _export_rows(ctx: Context, study_id: str, name: str, include_pilot: bool) ->
                        e.step_index, pl.get("object"), _json(pl.get("labels")), _json(pl.get("events")),
                        _json(pl.get("trace")), pl.get("acceptable"), pl.get("p_acceptable"), e.client_event_id,
                        e.app_version, _json(pl)]
-        elif name == "beliefs":
-            yield from _belief_rows(s, study, include_pilot)
         elif name == "scores":
             conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study_id)}
             for e in repo.iter_study_events(s, study_id=study_id, kind="questionnaire", include_pilot=include_pilot):
@@ -185,14 +186,20 @@ def _step_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[An
             shown[key] = e.created_at
 
 
-def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[Any]]:
-    conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study.id)}
-    for ts in repo.iter_study_task_sessions(s, study_id=study.id, include_pilot=include_pilot):
-        state = session_of(ts.state_json)
-        task = study.tasks[ts.task_index]
+def _belief_rows(ctx: Context, study_id: str, include_pilot: bool) -> Iterator[list[Any]]:
+    """beliefs.csv's rows, computed after the read transaction (past five objects each belief takes seconds)."""
+    with ctx.db.read() as s:
+        study = study_row(s, study_id)
+        tasks_def = list(study.tasks)
+        conditions = {p.id: p.condition for p in repo.list_participants(s, study_id=study.id)}
+        stored = [(ts.participant_id, ts.task_index, ts.state_json)
+                  for ts in repo.iter_study_task_sessions(s, study_id=study.id, include_pilot=include_pilot)]
+    for participant_id, task_index, state_json in stored:
+        state = session_of(state_json)
+        task = tasks_def[task_index]
         data = core.learning_verdicts(state)
         records: list[core.Record | None] = [None, *state.learning_records]
-        consistency = session_consistency(ts.state_json)  # teacher consistency (services.consistency)
+        consistency = session_consistency(state_json)  # teacher consistency (services.consistency)
         p_verdicts, score, flagged = consistency["p_verdicts"], consistency["score"], consistency["flagged"]
         seen: dict[str, int] = {}
         for step, record in enumerate(records):
@@ -206,7 +213,7 @@ def _belief_rows(s: Any, study: StudyRow, include_pilot: bool) -> Iterator[list[
             for i in range(5):
                 cells += ([view["top"][i]["formula"], view["top"][i]["p"]] if i < len(view["top"])
                           else [None, None])
-            yield [ts.participant_id, conditions.get(ts.participant_id), ts.task_index, task["key"], step,
+            yield [participant_id, conditions.get(participant_id), task_index, task["key"], step,
                    None if record is None else record.kind, None if record is None else record.acceptable,
                    None if record is None else _json([sorted(x) for x in record.trace]),
                    view["entropy"], view["map_formula"], view["map_description"], view["similarity"],

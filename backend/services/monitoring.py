@@ -7,6 +7,7 @@ from functools import lru_cache
 from typing import Any
 
 from ..config import Settings
+from ..core import learner_seam as seam
 from ..core import session as core
 from ..core.domain import get_domain
 from ..db import repository as repo
@@ -18,6 +19,7 @@ from .planning import session_of
 from .studies import study_row
 
 FINISHED = ("done", "withdrawn", "screened_out")
+MARGINALS = 10  # clause marginals shown with a belief (the MAP's company past five objects, where no list exists)
 
 
 def inactive_minutes(participant: ParticipantRow, now: datetime) -> float:
@@ -91,8 +93,10 @@ def _formula_view(task: str, mask: int) -> tuple[str, str]:
 def belief_view(task: str, prior: str, data: core.Verdicts, truth_formula: str | None, top: int,
                 flip_rate: float = 0.0) -> dict[str, Any]:
     """Entropy, similarity to the truth, MAP and top formulas of the belief after these (trace, acceptable,
-    is_verdict) items, for the learner with this flip rate (0: the authors')."""
-    belief = core.noisy_belief_after(task, prior, flip_rate, data)
+    is_verdict) items, for the learner with this flip rate (0: the authors'), asked through the learner seam:
+    past five objects ``top`` holds the MAP formula alone with its probability (the exact learner lists no
+    formulas; ``marginals_view`` gives the clauses most probably in the formula)."""
+    belief = seam.belief_after(task, prior, flip_rate, data)
     truth = None if truth_formula is None else get_domain(task).clause_space.mask_of_formula(truth_formula)
     map_formula, map_description = _formula_view(task, belief.map_mask)
     top_formulas = []
@@ -106,21 +110,37 @@ def belief_view(task: str, prior: str, data: core.Verdicts, truth_formula: str |
         "map_formula": map_formula,
         "map_description": map_description,
         "top": top_formulas,
+        "learner": belief.path,
+        "map_p": belief.map_probability,
     }
 
 
+@lru_cache(maxsize=16384)
+def marginals_view(task: str, prior: str, data: core.Verdicts, flip_rate: float = 0.0,
+                   k: int = MARGINALS) -> list[dict[str, Any]]:
+    """The k clauses most probably in the formula after these items, with their probabilities (either learner;
+    the dashboard's company for the MAP past five objects). Callers must not change what it returns."""
+    return seam.clause_texts(seam.belief_after(task, prior, flip_rate, data).top_marginals(k))
+
+
 def belief_summary(ctx: Context, study_id: str, participant_id: int, *, top: int = 5) -> dict[str, Any]:
-    """Per task: the learner's top formulas in plain English, entropy and similarity to the ground truth."""
+    """Per task: the learner's top formulas in plain English (past five objects the MAP formula and the clause
+    marginals), entropy and similarity to the ground truth."""
     with ctx.db.read() as s:
         study = study_row(s, study_id)
         participant = study_participant(s, study_id, participant_id)
-        tasks = []
-        for ts in repo.task_sessions_of(s, participant_id=participant.id):
-            state = session_of(ts.state_json)
-            task = study.tasks[ts.task_index]
-            view = belief_view(state.config.task, state.config.prior, core.learning_verdicts(state),
-                               task.get("ground_truth"), top, state.config.flip_rate)
-            tasks.append({"task_index": ts.task_index, "task": task["key"], "phase": state.phase,
-                          "n_observations": len(state.learning_records), **view})
-        return {"participant_id": participant.id, "condition": participant.condition, "stage": participant.stage,
-                "tasks": tasks}
+        stored = [(ts.task_index, ts.state_json) for ts in repo.task_sessions_of(s, participant_id=participant.id)]
+        tasks_def = list(study.tasks)
+        who = {"participant_id": participant.id, "condition": participant.condition, "stage": participant.stage}
+    tasks = []  # outside the transaction: past five objects a belief takes seconds
+    for task_index, state_json in stored:
+        state = session_of(state_json)
+        task = tasks_def[task_index]
+        data = core.learning_verdicts(state)
+        view = belief_view(state.config.task, state.config.prior, data, task.get("ground_truth"), top,
+                           state.config.flip_rate)
+        marginals = marginals_view(state.config.task, state.config.prior, data, state.config.flip_rate)
+        tasks.append({"task_index": task_index, "task": task["key"], "phase": state.phase,
+                      "n_observations": len(state.learning_records), **view,
+                      "marginals": [dict(m) for m in marginals]})
+    return {**who, "tasks": tasks}

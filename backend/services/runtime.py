@@ -9,6 +9,8 @@
   ends, and the periodic time-out sweep.
 - The action queue (ACTION_THREADS threads) runs participant actions that arrive on a library's callback
   thread (a click in the 3D view), so no database write ever happens on viser's threads.
+- The learner (LEARNER_THREADS thread) plans robot turns that take seconds to minutes (the exact learner past
+  five objects), so that no job runner waits for them (services.background.plan_ahead).
 - The robot's own thread and worker processes are started and stopped from here (Robot.start/shutdown).
 
 Handlers never run under another transaction's write lock: an action's jobs are only claimed after it
@@ -43,6 +45,7 @@ log = logging.getLogger(__name__)
 
 JOB_THREADS = 2
 ACTION_THREADS = 2
+LEARNER_THREADS = 1  # slow plans queue here, one at a time: on a shared 2-core host more would only contend
 CLAIM_BATCH = 4
 LEASE_SECONDS = 30.0  # a handler takes well under a second; a claim older than this belongs to a dead process
 POLL_SECONDS = 1.0  # other processes' jobs and jobs due later are found at least this often
@@ -124,6 +127,7 @@ class Runtime:
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
         self._actions: ThreadPoolExecutor | None = None
+        self._learner: ThreadPoolExecutor | None = None
         self._tables: dict[tuple[int, int | None], threading.Lock] = {}
         self._tables_lock = threading.Lock()
         self._ctx: Context | None = None
@@ -153,6 +157,7 @@ class Runtime:
         ctx.robot.start()
         self.scheduler.start()
         self._actions = ThreadPoolExecutor(max_workers=ACTION_THREADS, thread_name_prefix="runtime-action")
+        self._learner = ThreadPoolExecutor(max_workers=LEARNER_THREADS, thread_name_prefix="runtime-learner")
         for i in range(self.job_threads):
             thread = threading.Thread(target=self._run_jobs, name=f"runtime-jobs-{i}", daemon=True)
             thread.start()
@@ -174,6 +179,16 @@ class Runtime:
             raise RuntimeError("the runtime has not started: expected Runtime.start(ctx) at app start-up")
         return self._actions.submit(action)
 
+    def think(self, call: Callable[[], object]) -> Future[object] | None:
+        """Run a slow learner call (a plan past five objects) on the learner's thread; None when the runtime has not
+        started or is stopping (the caller then leaves it to whoever needs the plan, who makes it then)."""
+        if self._learner is None or self._stop.is_set():
+            return None
+        try:
+            return self._learner.submit(call)
+        except RuntimeError:
+            return None  # shutting down
+
     def stop(self) -> None:
         """Stop taking work, let handlers under way end, stop the robot; unfinished jobs stay in the database."""
         if not self._started or self._stop.is_set():
@@ -185,6 +200,8 @@ class Runtime:
         self.scheduler.stop()
         if self._actions is not None:
             self._actions.shutdown(wait=True, cancel_futures=True)
+        if self._learner is not None:  # a plan under way is not waited for: whoever needs it makes it again
+            self._learner.shutdown(wait=False, cancel_futures=True)
         if self._ctx is not None:
             self._ctx.robot.shutdown()
 

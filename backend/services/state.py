@@ -10,6 +10,7 @@ from dataclasses import dataclass, field
 from datetime import timedelta
 from typing import Any
 
+from ..core import learner_seam as seam
 from ..core import session as core
 from ..core.domain import get_domain
 from ..db import repository as repo
@@ -256,7 +257,8 @@ def _learned(s: Any, participant: ParticipantRow) -> list[dict[str, Any]]:
     for ts in repo.task_sessions_of(s, participant_id=participant.id):
         session = session_of(ts.state_json)
         space = get_domain(session.config.task).clause_space
-        b = core.belief(session)
+        c = session.config
+        b = seam.belief_after(c.task, c.prior, c.flip_rate, core.learning_verdicts(session))
         out.append({"task_index": ts.task_index, "map_formula": space.text_of(b.map_mask),
                     "map_description": space.describe(b.map_mask),
                     "summary": lay_summary(space.clauses_of(b.map_mask))})

@@ -17,6 +17,7 @@ from pydantic import BaseModel, ConfigDict, Field, TypeAdapter, ValidationError,
 from ..core import session as core
 from ..core.belief import MAX_FLIP_RATE
 from ..core.domain import DINNER_OBJECTS, DINNER_TASK_FORMULAS, get_domain, objects_task
+from ..core.learner_seam import ENUMERATED_UP_TO, EXACT_CRITERIA, exact_problems
 from ..core.ltl import to_text
 from ..core.priors import NAMED_PRIORS
 from ..core.puns import CRITERIA
@@ -29,10 +30,9 @@ from .page_settings import ConsentFormIn, check_page_settings
 from .plain_words import field_errors, number_ranges, shown
 
 MAX_BALANCED_TASKS = 5  # 5! = 120 orders, each crossed with every condition
-# A study's learner enumerates every formula (core.hypotheses): 513,024 for five objects, 16.6 million for six. Past
-# five, only the command line's exact learner answers (core.exact); the study server's per-step views need the
-# enumerated belief (top formulas, what-if, consistency), so a study takes at most this many objects for now.
-MAX_STUDY_OBJECTS = 5
+# A study takes MIN_OBJECTS to MAX_OBJECTS objects (scenes.spec). Up to five its learner enumerates every formula
+# (core.hypotheses); past five the exact factorised learner answers (core.exact, through core.learner_seam), which
+# offers fewer settings (learner_seam.exact_problems).
 MAX_PLACES = 100_000  # participants a study may take
 CODE_PATTERN = r"^[A-Za-z0-9_\-]+$"
 ID_PATTERN = r"^[A-Za-z0-9_\-]+$"
@@ -118,7 +118,8 @@ def _task_rules() -> list[dict[str, Any]]:
 
 def _study_rules() -> list[dict[str, Any]]:
     """The study-wide rules in JSON Schema: balanced orders' limit; with the dinner objects a custom formula names
-    them; with the study's own objects only custom and none tasks (the paper's two are the dinner table's)."""
+    them; with the study's own objects only custom and none tasks (the paper's two are the dinner table's); past
+    five objects only the exact learner's settings (core.learner_seam.exact_problems)."""
     dinner = {"anyOf": [{"not": {"required": ["objects"]}},
                         {"properties": {"objects": {"type": "null"}}, "required": ["objects"]}]}
     own = {"properties": {"objects": {"type": "array"}}, "required": ["objects"]}
@@ -126,7 +127,10 @@ def _study_rules() -> list[dict[str, Any]]:
     return [when({"task_order": {"const": "balanced"}}, {"properties": {"tasks": {"maxItems": MAX_BALANCED_TASKS}}}),
             {"if": dinner, "then": {"properties": {"tasks": {"items": dinner_formula}}}},
             {"if": own, "then": {"properties": {"tasks": {"items": {"properties": {
-                "key": {"enum": ["custom", "none"]}}}}}}}]
+                "key": {"enum": ["custom", "none"]}}}}}}},
+            when({"objects": {"type": "array", "minItems": ENUMERATED_UP_TO + 1}}, {"properties": {
+                "prior": {"enum": [name for name in NAMED_PRIORS if not exact_problems(name)]},
+                "flip_rate": {"const": 0}, "criterion": {"enum": list(EXACT_CRITERIA)}}})]
 
 
 def _object_rules() -> list[dict[str, Any]]:
@@ -246,7 +250,8 @@ class StudyIn(Definition):
                                "Prolific does (finished plus under way); then joining answers 409 (empty: no limit)")
     objects: list[ObjectIn] | None = Field(None, min_length=MIN_OBJECTS, max_length=MAX_OBJECTS, description=(
         "the study's own objects and goal layout (empty: the paper's dinner table); their names are the "
-        f"propositions of its tasks' formulas; at most {MAX_STUDY_OBJECTS} for now"))
+        f"propositions of its tasks' formulas; past {ENUMERATED_UP_TO} the exact learner answers, with the "
+        "authors' likelihood (flip_rate 0), a chains or total-order prior and the min-regret criterion"))
 
 
 STUDY_FIELDS = tuple(StudyIn.model_fields)
@@ -310,7 +315,7 @@ def _task_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
             yield where, f"{key} has a fixed ground truth; leave this empty"
         elif key == "custom" and not formula:
             yield where, f"a custom task needs a formula over {', '.join(objects)}, e.g. {example}"
-        elif key == "custom" and formula is not None and own and (names is None or len(names) > MAX_STUDY_OBJECTS):
+        elif key == "custom" and formula is not None and own and names is None:
             continue  # the objects' own problems come first
         elif key == "custom" and formula is not None and not re.match(formula_pattern(study_task(names)), formula):
             yield where, f"must be {hint}, got {shown(formula)}{_unknown_objects(formula, objects)}"
@@ -339,10 +344,14 @@ def _object_problems(spec: dict[str, Any]) -> Iterator[tuple[str, str]]:
     objects = spec.get("objects")
     if not isinstance(objects, list) or not objects:
         return
-    if len(objects) > MAX_STUDY_OBJECTS and len(objects) <= MAX_OBJECTS:
-        yield "objects", (f"{len(objects)} objects given; a study takes at most {MAX_STUDY_OBJECTS} for now (its "
-                          "learner enumerates every task formula; past five, `tableteach infer --objects` answers, but "
-                          "not yet the study server)")
+    if ENUMERATED_UP_TO < len(objects) <= MAX_OBJECTS:  # the exact learner's settings only
+        prior = spec.get("prior", core.DEFAULT_PRIOR)
+        flip_rate = spec.get("flip_rate", 0.0)
+        criterion = spec.get("criterion", "min-regret")
+        if isinstance(prior, str) and prior in NAMED_PRIORS and isinstance(criterion, str) and criterion in CRITERIA \
+                and isinstance(flip_rate, (int, float)) and not isinstance(flip_rate, bool):  # else the model says
+            for field, why in exact_problems(prior, float(flip_rate), criterion):
+                yield field, f"{why} ({len(objects)} objects given)"
     valid = True
     seen: dict[str, int] = {}
     for i, o in _dicts(objects):

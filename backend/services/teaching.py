@@ -13,7 +13,7 @@ from ..recording_store import RecordingId
 from . import executions, placements
 from .context import Context
 from .outcomes import code_to_show, outcome_of
-from .planning import ROBOT_TURNS, session_of
+from .planning import ROBOT_TURNS, position_of, session_of
 from .study_objects import study_objects
 from .runtime import FINISH_EXECUTION, WORK_OUT
 from .state import (
@@ -111,6 +111,8 @@ def finish_demonstration(ctx: Context, token: str, *, expect: Expect, key: str |
 
 def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None = None) -> dict[str, Any]:
     """The robot carries out the current query or test execution (starting it twice is harmless)."""
+    _plan_outside_transactions(ctx, token)
+
     def run(a: Action) -> None:
         ts, state, step = _teaching(a, expect, ("query", "test"))
         ex = ts.execution
@@ -138,6 +140,20 @@ def start_execution(ctx: Context, token: str, *, expect: Expect, key: str | None
         sync_execution(a.ctx, a.s, a.participant, ts)
 
     return act(ctx, token, "execute", dict(expect.__dict__), key, run)
+
+
+def _plan_outside_transactions(ctx: Context, token: str) -> None:
+    """The current robot turn's plan, made (or waited for, if a plan_ahead job is making it) before the action's
+    write transaction: past five objects a plan takes seconds, and no transaction may wait that long. The action
+    then finds it made (Planner caches it); if the session moved meanwhile, the action plans its own state."""
+    with ctx.db.read() as s:
+        found = repo.get_participant_and_study(s, token=token) if token else None
+        if found is None or found[0].stage != "task":
+            return
+        ts = repo.get_task_session(s, participant_id=found[0].id, task_index=found[0].task_index)
+        state_json = None if ts is None or ts.execution is not None else ts.state_json
+    if state_json is not None and position_of(state_json)[0] in ROBOT_TURNS:
+        ctx.planner.step(state_json)
 
 
 def assess_execution(ctx: Context, token: str, *, acceptable: bool | None, expect: Expect,

@@ -38,6 +38,17 @@ def _learner_view(learner: LearnerSpec, study_prior: str, study_flip_rate: float
     return {"learner": learner.name, "prior": prior, "flip_rate": flip_rate, "data": learner.data}
 
 
+def _learner_steps(spec: LearnerSpec, data: core.Verdicts, truth: int | None, task: str, prior: str,
+                   flip: float) -> dict[str, Any]:
+    """One learner's steps, or why it cannot run on this task (past five objects the exact learner has no
+    noise-aware likelihood and no forest prior yet): then its steps are empty and ``unavailable`` says why."""
+    try:
+        steps = step_views(spec, data, truth, task=task, study_prior=prior, study_flip_rate=flip)
+    except ValueError as exc:
+        return {**_learner_view(spec, prior, flip), "steps": [], "unavailable": str(exc)}
+    return {**_learner_view(spec, prior, flip), "steps": steps, "unavailable": None}
+
+
 def what_if(ctx: Context, study_id: str, participant_id: int, learners: Sequence[str] = ()) -> dict[str, Any]:
     """Per task the participant started: each learner's similarity, entropy and MAP formula after every step."""
     specs = learners_of(learners)
@@ -60,9 +71,7 @@ def what_if(ctx: Context, study_id: str, participant_id: int, learners: Sequence
             "task_index": task_index, "task": task["key"], "name": task.get("name"),
             "has_ground_truth": truth is not None,
             "records": [None, *(r.kind for r in state.learning_records)],
-            "learners": [{**_learner_view(spec, prior, flip),
-                          "steps": step_views(spec, data, truth, task=state.config.task, study_prior=prior,
-                                              study_flip_rate=flip)} for spec in specs],
+            "learners": [_learner_steps(spec, data, truth, state.config.task, prior, flip) for spec in specs],
         })
     return {"study_id": study_id, "participant_id": participant_id, "study_prior": study_prior,
             "study_flip_rate": study_flip, "tasks": tasks}

@@ -11,7 +11,7 @@ from ..core.counterfactual import spec_pattern
 from ..services import analysis
 from ..services import what_if as what_if_service
 from .deps import ContextDep, Experimenter, ParticipantId, StepIndex
-from .schemas import ParticipantBaseOut, error_responses
+from .schemas import ClauseMarginalOut, ParticipantBaseOut, error_responses, learner_path_field
 
 router = APIRouter(prefix="/api/v1/studies", tags=["analysis"], dependencies=[Experimenter],
                    responses=error_responses(401, 404, 422))
@@ -92,6 +92,10 @@ class BeliefStepOut(BaseModel):
     map_formula: str
     map_description: str
     top: list[RankedFormulaOut]
+    learner: Literal["enumerating", "exact"] = learner_path_field()
+    map_p: float = Field(description="the MAP formula's probability under the learner's belief")
+    marginals: list[ClauseMarginalOut] = Field(description="the clauses most probably in the formula, most "
+                                               "probable first")
 
 
 class ExecutionOut(BaseModel):
@@ -243,7 +247,9 @@ class WhatIfLearnerOut(BaseModel):
     prior: str
     flip_rate: float = Field(description="0: the authors' learner; above: the noise-aware one")
     data: Literal["all", "demonstrations"]
-    steps: list[WhatIfStepOut]
+    steps: list[WhatIfStepOut] = Field(description="empty when the learner is unavailable for this task")
+    unavailable: str | None = Field(description="why this learner cannot run on this task (past five objects the "
+                                    "exact learner has no noise-aware likelihood yet); null when it ran")
 
 
 class WhatIfTaskOut(BaseModel):

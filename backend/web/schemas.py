@@ -429,6 +429,18 @@ class BeliefFormulaOut(BaseModel):
     p: float = Field(description="its probability under the learner's belief")
 
 
+class ClauseMarginalOut(BaseModel):
+    clause: str = Field(description="a template clause, e.g. (!bowl U dinner_plate)")
+    p: float = Field(description="the probability that the task's formula contains it, under the learner's belief")
+
+
+def learner_path_field() -> Any:
+    """The field saying which learner answered a belief view (the same words wherever one is shown)."""
+    return Field(description="which learner answered: 'enumerating' (up to five objects: every formula listed, "
+                 "'top' the most probable ones) or 'exact' (past five: no formula listed, 'top' holds the MAP "
+                 "formula alone with its exact probability; 'marginals' say which clauses are likely)")
+
+
 class BeliefTaskOut(BaseModel):
     """What the learner believes one task is."""
 
@@ -442,6 +454,10 @@ class BeliefTaskOut(BaseModel):
     map_formula: str
     map_description: str
     top: list[BeliefFormulaOut]
+    learner: Literal["enumerating", "exact"] = learner_path_field()
+    map_p: float = Field(description="the MAP formula's probability under the learner's belief")
+    marginals: list[ClauseMarginalOut] = Field(description="the clauses most probably in the formula, most "
+                                               "probable first")
 
 
 ERROR_MEANINGS = {

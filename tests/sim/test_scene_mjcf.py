@@ -18,28 +18,31 @@ from tableteach.sim.physics import MujocoWorld
 from tableteach.sim.scene import SCENE_XML, load_scene, scene_objects
 from tableteach.sim.scene_mjcf import scene_path, scene_xml
 
-from tests.study_objects import EIGHT_OBJECTS, LUNCH_OBJECTS
+from tests.study_objects import EIGHT_OBJECTS, LUNCH_OBJECTS, TEN_OBJECTS
 
 EIGHT = SceneSpec.from_json(EIGHT_OBJECTS)
+TEN = SceneSpec.from_json(TEN_OBJECTS)
 
 
-def test_eight_objects_of_every_shape_are_each_set_in_their_slot_by_the_arm(tmp_path: Path) -> None:
-    assert list(scene_problems(EIGHT)) == []
-    world = MujocoWorld(seed=7, scene=scene_path(EIGHT, tmp_path))
-    assert world.objects == EIGHT.names
+@pytest.mark.parametrize("spec", [EIGHT, TEN], ids=["eight", "ten"])
+def test_eight_or_ten_objects_of_every_shape_are_each_set_in_their_slot_by_the_arm(tmp_path: Path,
+                                                                                   spec: SceneSpec) -> None:
+    assert list(scene_problems(spec)) == []
+    world = MujocoWorld(seed=7, scene=scene_path(spec, tmp_path))
+    assert world.objects == spec.names
     assert world.labels() == frozenset()
-    for i, obj in enumerate(EIGHT.names):
+    for i, obj in enumerate(spec.names):
         labels = world.place(obj)
-        assert labels == frozenset(EIGHT.names[: i + 1]), (obj, sorted(labels))
+        assert labels == frozenset(spec.names[: i + 1]), (obj, sorted(labels))
     # MuJoCo's state: each object rests upright, still and centred in its slot, on the table top.
-    for obj in EIGHT.names:
+    for obj in spec.names:
         body = world.layout.body[obj]
         slot = world.layout.slot[obj].pos
         assert math.hypot(*(world.data.xpos[body][:2] - slot[:2])) < 0.02, obj
         assert world.data.xmat[body, 8] > 0.95, obj
         assert abs(world.data.xpos[body][2] + world.layout.bottom[obj] - TABLE_TOP) < 0.01, obj
         assert world.in_slot(obj)
-    assert world.trace[-1] == frozenset(EIGHT.names)
+    assert world.trace[-1] == frozenset(spec.names)
 
 
 @pytest.mark.parametrize("shape", sorted(SIZE_RANGES))

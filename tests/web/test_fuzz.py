@@ -60,9 +60,9 @@ EXCLUDED = [schemathesis.checks.positive_data_acceptance]
 NOT_IN_ANY_SCHEMA = "is already the id of an earlier item"
 # ... and, for standard-questionnaire items, the cross-field rules: an instrument_item belongs to the instrument
 # named, and an anchored kind has its two labels; for a study's own objects, what depends on the other objects
-# (distinct names, slots clear of each other and within the arm's reach, room on Table A, at most five for now, the
-# formulas' objects); a placement of an object the participant's study does not have; a formula over objects the
-# study (or the dinner table) does not have.
+# (distinct names, slots clear of each other and within the arm's reach, room on Table A, the formulas' objects); a
+# placement of an object the participant's study does not have; a formula over objects the study (or the dinner
+# table) does not have.
 CROSS_FIELD = re.compile(r"^(questionnaire\.\d+\.(instrument|instrument_item|anchors)|objects(\.\d+\.(name|slot))?"
                          r"|tasks\.\d+\.(ground_truth|key))$")
 OTHER_OBJECTS = ("is not an object of this study", "unknown proposition", "names an object twice")

@@ -35,8 +35,12 @@ def test_each_bad_definition_of_objects_is_refused_naming_the_problem(app_client
     errors = _refused(app_client, lunch_study(objects=too_many))
     assert "at most 10" in errors["objects"]
     assert "at least 2" in _refused(app_client, lunch_study(objects=LUNCH_OBJECTS[:1]))["objects"]
-    six_to_ten = _refused(app_client, lunch_study(objects=EIGHT_OBJECTS))
-    assert "8 objects given; a study takes at most 5" in six_to_ten["objects"]
+    six_to_ten = _refused(app_client, lunch_study(objects=EIGHT_OBJECTS, flip_rate=0.1, criterion="most-likely",
+                                                  prior="forest"))
+    assert six_to_ten["flip_rate"].startswith("the noise-aware learner (flip rate 0.1) is not available past 5 objects")
+    assert "(8 objects given)" in six_to_ten["flip_rate"]
+    assert "'most-likely' is not available past 5 objects; expected min-regret" in six_to_ten["criterion"]
+    assert "'forest' has no exact factorised form" in six_to_ten["prior"]
 
     def twice(objects: list[dict[str, Any]]) -> None:
         objects[3]["name"] = "apple"
