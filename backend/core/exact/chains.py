@@ -275,21 +275,23 @@ def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool, tokens: To
                     level_sum[:, position[S_k[starts]], step:, shift:shift + acc.shape[-1]] += summed
             seq[:, sets] = level_sum
         total = seq[:, full] / (p * math.factorial(n))
-    return _times_extra(prior, cons, total, tokens)
+    return _times_extra(prior, np.array([c.g_extra for c in cons], dtype=np.int64), total, tokens)
 
 
-def _times_extra(prior: ChainPrior, cons: list[Constraint], poly: np.ndarray,
+def _times_extra(prior: ChainPrior, g_extra: np.ndarray, poly: np.ndarray,
                  tokens: TokenWeights | None = None) -> np.ndarray:
-    """Multiply in the independent G clauses of the forbiddable-only propositions (last axis: N)."""
+    """Multiply in the independent G clauses of the forbiddable-only propositions (last axis: N); g_extra[M]
+    says which of them each constraint allows."""
     m = len(prior.vocabulary.extra)
     out = np.zeros((*poly.shape[:-1], prior.degree + 1), dtype=poly.dtype)
     out[..., :poly.shape[-1]] = poly
     qg = prior.p_forbid
+    extra = (poly.ndim - 1) * (None,)
     for j in range(m):
-        ok = np.array([c.g_extra >> j & 1 for c in cons], dtype=float)[:, None, None]
+        ok = ((np.asarray(g_extra, dtype=np.int64) >> j) & 1).astype(float)[(slice(None), *extra[1:])]
         if tokens is not None:
-            ok = ok * tokens.g_extra[:, j][:, None, None]
+            ok = ok * tokens.g_extra[:, j][(slice(None), *extra[1:])]
         shifted = np.zeros_like(out)
         shifted[..., 1:] = out[..., :-1]
-        out = out * (1 - qg) + shifted * qg * ok
+        out = out * (1 - qg) + shifted * qg * ok[..., None]
     return out

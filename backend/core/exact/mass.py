@@ -1,0 +1,42 @@
+"""Prior mass within many constraints by clause count: each group of equal antecedent sets by the cheaper DP."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .batch import Batch
+from .chains import ChainPrior, _mass
+from .tails import antecedents, group_mass
+
+CHUNK_BYTES = 48 << 20  # per DP call: the tails DP's tables grow as 2^|A| (|A| + 1) L
+
+
+def prior_mass(prior: ChainPrior, batch: Batch, by_blocks: bool = False) -> np.ndarray:
+    """Z[M, N] (or Z[M, k, N] by block count k): prior mass of the formulas within each constraint."""
+    voc = prior.vocabulary
+    n = voc.n
+    K = n + 1 if by_blocks else 1
+    out = np.zeros((len(batch), K, prior.degree + 1))
+    if len(batch) == 0:
+        return out if by_blocks else out[:, 0]
+    full = (1 << n) - 1
+    a_masks = antecedents(batch)
+    one_order = not 0.0 < prior.p_new_block < 1.0
+    if one_order:
+        a_masks = np.full(len(batch), full, dtype=np.int64)
+    for a_mask in np.unique(a_masks).tolist():
+        rows = np.flatnonzero(a_masks == a_mask)
+        nA = bin(a_mask).count("1")
+        if a_mask == full:  # no tails: the DP over all objects
+            step = 64 if n <= 8 else 16
+            for start in range(0, rows.size, step):
+                part = rows[start:start + step]
+                cons = [batch.row(int(c)) for c in part]
+                out[part] = _mass(prior, cons, by_blocks)
+            continue
+        per_row = (1 << nA) * (nA + 2) * (2 * n + nA * (nA + 1) // 2 + 1) * 8 * 4
+        step = max(1, CHUNK_BYTES // per_row)
+        for start in range(0, rows.size, step):
+            part = rows[start:start + step]
+            out[part] = group_mass(prior, batch.take(part), a_mask, by_blocks)
+    return out if by_blocks else out[:, 0]

@@ -1,0 +1,178 @@
+"""Prior mass within constraints where few objects may precede another: chains over those, tails for the rest.
+
+Call A the objects that some constraint of the group lets precede another object, T the others.
+Within the constraint a chain's every element but the last lies in A, so a formula's chain
+structure is: chains inside A without a tail, chains inside A that end in one object of T (a tail
+z, allowed when every element of the chain may precede z), and the other objects of T alone.
+Every object of T sits in exactly one block of its own, so k = |T| + j blocks for j tail-less
+chains. The chains prior's weight k!/n! p^(k-1) (1-p)^(n-k) then needs the count j only:
+
+- ``G[S]``: the objects of T taken one at a time, each alone or as the tail of a new chain inside
+  A whose objects are S so far (sum over submasks, |T| 3^|A| polynomial products);
+- ``H[S, j]``: S cut into j tail-less chains, the block holding min S taken first (3^|A| / 2);
+- the mass is sum over S of G[S] H[A \\ S, j] times (|T| + j)! / (p n!).
+
+Past data, A is the objects present in every acceptable execution: often half of them, so this is
+far cheaper than the subset DP over all n objects in ``chains.py``, which gives the same numbers
+(tests/core/test_exact_engine.py) and still answers when T is empty or the prior is one total order.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+
+from .batch import Batch
+from .chains import ChainPrior, _levels, _pairs, _times_element, _times_extra
+
+
+def antecedents(batch: Batch) -> np.ndarray:
+    """Per constraint, the mask of objects it lets precede some object."""
+    if batch.into.shape[1] == 0:
+        return np.zeros(len(batch), dtype=np.int64)
+    return np.bitwise_or.reduce(batch.into, axis=1)
+
+
+def element_polys(prior: ChainPrior, batch: Batch) -> tuple[np.ndarray, np.ndarray]:
+    """Per constraint and object the F/G polynomial (degree 2) as last of its block and as an earlier element."""
+    voc = prior.vocabulary
+    n = voc.n
+    qf, qg = prior.p_eventually, prior.p_forbid
+    shifts = np.arange(n, dtype=np.int64)
+    g_ok = ((batch.g_ok[:, None] >> shifts) & 1).astype(bool)
+    f_ok = ((batch.f_ok[:, None] >> shifts) & 1).astype(bool)
+    forb = ((voc.forbiddable_orderable >> shifts) & 1).astype(bool)
+    qg_i = np.where(forb, qg, 0.0)[None, :]
+    last = np.zeros((len(batch), n, 3))
+    last[:, :, 0] = (1 - qg_i) * (1 - qf)
+    last[:, :, 1] = np.where(f_ok, (1 - qg_i) * qf, 0.0) + np.where(g_ok, qg_i * (1 - qf), 0.0)
+    if not prior.require_satisfiable:
+        last[:, :, 2] = np.where(g_ok & f_ok, qg_i * qf, 0.0)
+    ante = last.copy()
+    if prior.require_satisfiable:  # an earlier element of a chain must occur: it cannot be forbidden
+        ante[:, :, 1] = np.where(f_ok, (1 - qg_i) * qf, 0.0)
+    return last, ante
+
+
+@lru_cache(maxsize=64)
+def _local_masks(a_mask: int) -> tuple[np.ndarray, np.ndarray]:
+    """Indices of A's objects, and for every local subset of A its mask over all objects."""
+    ids = np.array([i for i in range(a_mask.bit_length()) if a_mask >> i & 1], dtype=np.int64)
+    glob = np.zeros(1 << ids.size, dtype=np.int64)
+    for k, i in enumerate(ids.tolist()):
+        glob[1 << k: 2 << k] = glob[: 1 << k] | (1 << i)
+    return ids, glob
+
+
+def _chain_orders(last: np.ndarray, ante: np.ndarray, into: np.ndarray, ids: np.ndarray,
+                  glob: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """chain[M, α], block[M, α]: valid orders of each subset α of A, every element an earlier one (chain) or the
+    last in the last role (block), weighted by the elements' F/G polynomials (degree <= 2|α|)."""
+    M, nA = into.shape[0], ids.size
+    L = 2 * nA + 1
+    chain = np.zeros((M, 1 << nA, L))
+    block = np.zeros((M, 1 << nA, L))
+    chain[:, 0, 0] = 1.0
+    levels = _levels(nA)
+    for r in range(1, nA + 1):
+        sets = levels[r]
+        for z in range(nA):
+            has = sets[(sets >> z) & 1 == 1]
+            rest = has ^ (1 << z)
+            zg = int(ids[z])
+            valid = (glob[rest][None, :] & ~into[:, zg][:, None]) == 0
+            src = chain[:, rest, :] * valid[:, :, None]
+            chain[:, has, :] += _times_element(ante[:, zg, :], src)
+            block[:, has, :] += _times_element(last[:, zg, :], src)
+    return chain, block
+
+
+def _submask_products(read: np.ndarray, write: np.ndarray, weights: np.ndarray, nA: int, first_only: bool,
+                      block_scale: list[float], block_shift: list[int]) -> None:
+    """write[S] += sum over non-empty α within S (holding min S if first_only) of read[S \\ α] * weights[α].
+
+    read and write (M, 2^nA, *mid, L) may be views of one table: level by level, a set reads only smaller
+    ones, so a recursion is written in place. α's polynomial (weights, (M, 2^nA, Lw)) is scaled by
+    block_scale[|α|] and shifted by block_shift[|α|] degrees; products past degree L - 1 are dropped
+    (the callers' L bounds every formula's clause count, so they are zero).
+    """
+    M, L = read.shape[0], read.shape[-1]
+    mid = read.shape[2:-1]
+    width = int(np.prod(mid)) if mid else 1
+    levels = _levels(nA)
+    for s in range(1, nA + 1):
+        sets = levels[s]
+        level = np.zeros((M, sets.size, width, L))
+        for b in range(1, s + 1):
+            shift = block_shift[b]
+            if shift >= L or block_scale[b] == 0.0:
+                continue
+            S, B, R, per = _pairs(nA, s, b)
+            if first_only:
+                keep = (B & (S & -S)) != 0
+                B, R = B[keep], R[keep]
+                per = math.comb(s - 1, b - 1)
+            d_max = min(2 * b + 1, weights.shape[-1], L - shift)
+            blk = weights[:, B, :d_max] * block_scale[b]
+            rest = read[:, R].reshape(M, sets.size, per, width * L)
+            prod = np.matmul(blk.reshape(M, sets.size, per, d_max).transpose(0, 1, 3, 2), rest)
+            prod = prod.reshape(M, sets.size, d_max, width, L)
+            for d in range(d_max):
+                level[:, :, :, shift + d:] += prod[:, :, d, :, :L - shift - d]
+        write[:, sets] += level.reshape(M, sets.size, *mid, L)
+
+
+def _poly_product_sum(x: np.ndarray, y: np.ndarray, length: int) -> np.ndarray:
+    """sum over axis 1 of the polynomial products x[:, s] * y[:, s] (last axis: coefficients), cut to length."""
+    M, _, Lx = x.shape
+    Ly = y.shape[-1]
+    outer = np.matmul(x.transpose(0, 2, 1), y.reshape(M, y.shape[1], -1)).reshape(M, Lx, *y.shape[2:])
+    out = np.zeros((M, *y.shape[2:-1], length))
+    for a in range(min(Lx, length)):
+        top = min(Ly, length - a)
+        out[..., a:a + top] += outer[:, a, ..., :top]
+    return out
+
+
+def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool) -> np.ndarray:
+    """Prior mass by clause count (and block count if by_blocks) of constraints whose antecedents lie in a_mask."""
+    voc = prior.vocabulary
+    n, M, p = voc.n, len(batch), prior.p_new_block
+    ids, glob = _local_masks(a_mask)
+    nA = ids.size
+    t_ids = [i for i in range(n) if not a_mask >> i & 1]
+    nT = len(t_ids)
+    L = 2 * n + (nA + 1) * nA // 2 + 1
+    last, ante = element_polys(prior, batch)
+    chain, block = _chain_orders(last, ante, batch.into, ids, glob)
+    full = (1 << nA) - 1
+    # G: objects of T alone or as tails of chains inside A (the chain's b elements bring b more pairs)
+    G = np.zeros((M, 1 << nA, L))
+    G[:, 0, 0] = 1.0
+    tail_scale = [0.0] + [p * (1 - p) ** b for b in range(1, nA + 1)]
+    tail_shift = [0] + [(b + 1) * b // 2 for b in range(1, nA + 1)]
+    for zg in t_ids:
+        fits = (glob[None, :] & ~batch.into[:, zg][:, None]) == 0  # α may all precede z
+        tails = np.zeros_like(G)
+        _submask_products(G, tails, chain * fits[:, :, None], nA, False, tail_scale, tail_shift)
+        G = _times_element(p * last[:, zg, :], G) + _times_element(last[:, zg, :], tails)
+    # H: A cut into j tail-less chains
+    H = np.zeros((M, 1 << nA, nA + 1, L))
+    H[:, 0, 0, 0] = 1.0
+    if nA:
+        block_scale = [0.0] + [p * (1 - p) ** (b - 1) for b in range(1, nA + 1)]
+        block_shift = [0] + [b * (b - 1) // 2 for b in range(1, nA + 1)]
+        _submask_products(H[:, :, :-1], H[:, :, 1:], block, nA, True, block_scale, block_shift)  # a block adds one to j
+    complement = full ^ np.arange(1 << nA)
+    ks = nT + np.arange(nA + 1)
+    scale = np.array([math.exp(math.lgamma(k + 1) - math.lgamma(n + 1)) for k in ks]) / p
+    Hc = H[:, complement] * scale[None, None, :, None]
+    if by_blocks:
+        z = _poly_product_sum(G, Hc, L)  # (M, nA + 1, L)
+        out = np.zeros((M, n + 1, L))
+        out[:, nT:] = z
+    else:
+        out = _poly_product_sum(G, Hc.sum(axis=2), L)[:, None, :]
+    return _times_extra(prior, batch.g_extra, out)

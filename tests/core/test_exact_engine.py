@@ -1,0 +1,58 @@
+"""The tails DP (core/exact/tails.py) and the constraint batches give the numbers of the subset DP over all objects."""
+
+import numpy as np
+import pytest
+
+from tableteach.core.exact.batch import Batch, of_events
+from tableteach.core.exact.chains import ChainPrior, _mass
+from tableteach.core.exact.constraints import Vocabulary
+from tableteach.core.exact.mass import prior_mass
+from tableteach.core.exact.tails import antecedents
+
+SETTINGS = [  # (objects, extras, forbiddable objects, p_new_block, require_satisfiable)
+    (5, 0, 5, 0.7, True),
+    (6, 2, 5, 0.7, False),
+    (7, 3, 0, 0.5, True),
+    (7, 0, 7, 1.0, False),
+]
+
+
+def _data_constraints(voc: Vocabulary, rng: np.random.Generator, count: int) -> list:
+    """Meets of one to three random executions, some without one more clause (not transitive), and single ones."""
+    props = voc.orderable + voc.extra
+    out = []
+    for _ in range(count):
+        k = int(rng.integers(1, 4))
+        runs = [tuple(rng.permutation(props)[: int(rng.integers(0, len(props) + 1))]) for _ in range(k)]
+        batch = of_events(voc, runs).reduce()
+        c = batch.row(0)
+        if rng.random() < 0.3:
+            a, z = rng.choice(voc.n, 2, replace=False)
+            c = c.meet(voc.without("U", voc.orderable[a], voc.orderable[z]))
+        out.append(c)
+    return out
+
+
+@pytest.mark.parametrize(("n", "m", "forbid", "p_new", "sat"), SETTINGS)
+@pytest.mark.parametrize("by_blocks", [False, True])
+def test_tails_dp_equals_the_subset_dp(n, m, forbid, p_new, sat, by_blocks):
+    rng = np.random.default_rng(n * 10 + m)
+    names = tuple(f"o{i}" for i in range(n))
+    voc = Vocabulary(names, names[:forbid] + tuple(f"t{j}" for j in range(m)))
+    prior = ChainPrior(voc, p_new, 0.5, 0.5, sat)
+    cons = _data_constraints(voc, rng, 40)
+    batch = Batch.of(cons, n)
+    sizes = {bin(int(a)).count("1") for a in antecedents(batch)}
+    assert len(sizes) > 2 and max(sizes) < n, sizes  # several antecedent sets, none with every object
+    mine = prior_mass(prior, batch, by_blocks)
+    reference = _mass(prior, cons, True)
+    np.testing.assert_allclose(mine, reference if by_blocks else reference.sum(axis=1), rtol=1e-12, atol=1e-300)
+
+
+def test_batched_executions_equal_the_vocabulary_one_by_one():
+    rng = np.random.default_rng(3)
+    names = tuple(f"o{i}" for i in range(6))
+    voc = Vocabulary(names, names[:3] + ("t0", "t1"))
+    runs = [tuple(rng.permutation(names + ("t0", "t1"))[: int(rng.integers(0, 9))]) for _ in range(50)]
+    batch = of_events(voc, runs)
+    assert [batch.row(i) for i in range(len(runs))] == [voc.of_events(r) for r in runs]
