@@ -56,3 +56,23 @@ def test_batched_executions_equal_the_vocabulary_one_by_one():
     runs = [tuple(rng.permutation(names + ("t0", "t1"))[: int(rng.integers(0, 9))]) for _ in range(50)]
     batch = of_events(voc, runs)
     assert [batch.row(i) for i in range(len(runs))] == [voc.of_events(r) for r in runs]
+
+
+@pytest.mark.parametrize(("n", "m", "forbid", "p_new", "sat"), SETTINGS[:3])
+def test_tails_dp_with_token_weights_equals_the_subset_dp(n, m, forbid, p_new, sat):
+    """Random complex weights per similarity token (the expected similarity's DP) give the same masses."""
+    from tableteach.core.exact.chains import TokenWeights
+
+    rng = np.random.default_rng(n + m)
+    names = tuple(f"o{i}" for i in range(n))
+    voc = Vocabulary(names, names[:forbid] + tuple(f"t{j}" for j in range(m)))
+    prior = ChainPrior(voc, p_new, 0.5, 0.5, sat)
+    cons = _data_constraints(voc, rng, 24)
+
+    def weights(*shape):
+        return rng.random((len(cons), *shape)) + 1j * rng.random((len(cons), *shape))
+
+    tokens = TokenWeights(weights(n), weights(n), weights(n, n), weights(m))
+    mine = prior_mass(prior, Batch.of(cons, n), tokens=tokens)
+    reference = _mass(prior, cons, False, tokens)[:, 0]
+    np.testing.assert_allclose(mine, reference, rtol=1e-12, atol=1e-300)

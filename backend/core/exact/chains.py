@@ -208,21 +208,10 @@ def _token_block_orders(prior: ChainPrior, cons: Sequence[Constraint], tokens: T
 
 
 def prior_mass_by_count(prior: ChainPrior, cons: Sequence[Constraint], chunk: int = 64) -> np.ndarray:
-    """Z[M, N]: prior mass (unnormalised if conditioned) of the formulas within each constraint with N clauses."""
+    """Z[M, N]: prior mass (unnormalised if conditioned) of the formulas within each constraint with N clauses, by
+    the subset DP over all objects (``mass.prior_mass`` is the faster route; this one is its reference)."""
     out = [_mass(prior, list(cons[i:i + chunk]), False)[:, 0] for i in range(0, len(cons), chunk)]
     return np.concatenate(out, axis=0) if out else np.zeros((0, prior.degree + 1))
-
-
-def prior_mass_by_blocks(prior: ChainPrior, cons: Sequence[Constraint], chunk: int = 32) -> np.ndarray:
-    """Z[M, k, N]: as ``prior_mass_by_count``, split by the number k of chain blocks (singletons included)."""
-    out = [_mass(prior, list(cons[i:i + chunk]), True) for i in range(0, len(cons), chunk)]
-    n = prior.vocabulary.n
-    return np.concatenate(out, axis=0) if out else np.zeros((0, n + 1, prior.degree + 1))
-
-
-def prior_mass_with_tokens(prior: ChainPrior, cons: Sequence[Constraint], tokens: TokenWeights) -> np.ndarray:
-    """Z[M, N]: as ``prior_mass_by_count``, every formula also weighted by its similarity tokens' weights."""
-    return _mass(prior, list(cons), False, tokens)[:, 0]
 
 
 def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool, tokens: TokenWeights | None = None) -> np.ndarray:

@@ -5,18 +5,26 @@ from __future__ import annotations
 import numpy as np
 
 from .batch import Batch
-from .chains import ChainPrior, _mass
+from .chains import ChainPrior, TokenWeights, _mass
 from .tails import antecedents, group_mass
 
 CHUNK_BYTES = 48 << 20  # per DP call: the tails DP's tables grow as 2^|A| (|A| + 1) L
 
 
-def prior_mass(prior: ChainPrior, batch: Batch, by_blocks: bool = False) -> np.ndarray:
-    """Z[M, N] (or Z[M, k, N] by block count k): prior mass of the formulas within each constraint."""
+def _rows(tokens: TokenWeights | None, rows: np.ndarray) -> TokenWeights | None:
+    if tokens is None:
+        return None
+    return TokenWeights(tokens.g[rows], tokens.f[rows], tokens.pair[rows], tokens.g_extra[rows])
+
+
+def prior_mass(prior: ChainPrior, batch: Batch, by_blocks: bool = False,
+               tokens: TokenWeights | None = None) -> np.ndarray:
+    """Z[M, N] (or Z[M, k, N] by block count k): prior mass of the formulas within each constraint; with token
+    weights (one row per constraint), each formula also weighted by its similarity tokens' weights."""
     voc = prior.vocabulary
     n = voc.n
     K = n + 1 if by_blocks else 1
-    out = np.zeros((len(batch), K, prior.degree + 1))
+    out = np.zeros((len(batch), K, prior.degree + 1), dtype=float if tokens is None else tokens.f.dtype)
     if len(batch) == 0:
         return out if by_blocks else out[:, 0]
     full = (1 << n) - 1
@@ -32,11 +40,11 @@ def prior_mass(prior: ChainPrior, batch: Batch, by_blocks: bool = False) -> np.n
             for start in range(0, rows.size, step):
                 part = rows[start:start + step]
                 cons = [batch.row(int(c)) for c in part]
-                out[part] = _mass(prior, cons, by_blocks)
+                out[part] = _mass(prior, cons, by_blocks, _rows(tokens, part))
             continue
         per_row = (1 << nA) * (nA + 2) * (2 * n + nA * (nA + 1) // 2 + 1) * 8 * 4
         step = max(1, CHUNK_BYTES // per_row)
         for start in range(0, rows.size, step):
             part = rows[start:start + step]
-            out[part] = group_mass(prior, batch.take(part), a_mask, by_blocks)
+            out[part] = group_mass(prior, batch.take(part), a_mask, by_blocks, _rows(tokens, part))
     return out if by_blocks else out[:, 0]

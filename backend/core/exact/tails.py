@@ -25,7 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 from .batch import Batch
-from .chains import ChainPrior, _levels, _pairs, _times_element, _times_extra
+from .chains import ChainPrior, TokenWeights, _levels, _pairs, _times_element, _times_extra
 
 
 def antecedents(batch: Batch) -> np.ndarray:
@@ -66,16 +66,62 @@ def _local_masks(a_mask: int) -> tuple[np.ndarray, np.ndarray]:
     return ids, glob
 
 
-def _chain_orders(last: np.ndarray, ante: np.ndarray, into: np.ndarray, ids: np.ndarray,
-                  glob: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def element_parts(prior: ChainPrior, batch: Batch, tokens: TokenWeights) -> np.ndarray:
+    """parts[role, with_g, M, n, 3]: element polynomials split by whether G(i) is chosen, token-weighted
+    (role 0: last of its block, 1: an earlier element, whose item token is always there); as
+    ``chains._element_parts`` for a batch."""
+    voc = prior.vocabulary
+    n, M = voc.n, len(batch)
+    qf, qg = prior.p_eventually, prior.p_forbid
+    shifts = np.arange(n, dtype=np.int64)
+    f_ok = ((batch.f_ok[:, None] >> shifts) & 1).astype(bool)
+    forb = ((voc.forbiddable_orderable >> shifts) & 1).astype(bool)
+    g_ok = ((batch.g_ok[:, None] >> shifts) & 1).astype(bool) & forb[None, :]
+    parts = np.zeros((2, 2, M, n, 3), dtype=tokens.f.dtype)
+    for role in (0, 1):
+        for f_on in (False, True):
+            for g_on in (False, True):
+                if prior.require_satisfiable and g_on and (f_on or role == 1):
+                    continue
+                w = (qf if f_on else 1 - qf) * np.where(forb, qg if g_on else 1 - qg, 1.0)[None, :]
+                ok = np.ones((M, n), dtype=bool)
+                if f_on:
+                    ok &= f_ok
+                if g_on:
+                    ok &= g_ok
+                tok = np.ones((M, n), dtype=tokens.f.dtype)
+                if f_on or role == 1:
+                    tok = tok * tokens.f
+                if g_on:
+                    tok = tok * tokens.g
+                parts[role, int(g_on), :, :, int(f_on) + int(g_on)] += np.where(ok, w * tok, 0.0)
+    return parts
+
+
+def _pair_weights(tokens: TokenWeights | None, ids: np.ndarray, z: int, M: int) -> np.ndarray | None:
+    """PF[M, α] = product over a in α (a subset of A, local indices) of the order token (a, z)'s weight."""
+    if tokens is None:
+        return None
+    out = np.ones((M, 1 << ids.size), dtype=tokens.pair.dtype)
+    for k, a in enumerate(ids.tolist()):
+        out[:, 1 << k: 2 << k] = out[:, : 1 << k] * tokens.pair[:, a, z][:, None]
+    return out
+
+
+def _chain_orders(roles: np.ndarray, into: np.ndarray, ids: np.ndarray, glob: np.ndarray,
+                  tokens: TokenWeights | None) -> tuple[np.ndarray, np.ndarray]:
     """chain[M, α], block[M, α]: valid orders of each subset α of A, every element an earlier one (chain) or the
-    last in the last role (block), weighted by the elements' F/G polynomials (degree <= 2|α|)."""
+    last in the last role (block), weighted by the elements' F/G polynomials (degree <= 2|α|).
+
+    roles[role, with_g, M, n, 3] (role 0 last, 1 earlier); with token weights, the order tokens into an
+    element count when it is not forbidden (with_g 0); without, with_g 0 holds the whole polynomial."""
     M, nA = into.shape[0], ids.size
     L = 2 * nA + 1
-    chain = np.zeros((M, 1 << nA, L))
-    block = np.zeros((M, 1 << nA, L))
+    chain = np.zeros((M, 1 << nA, L), dtype=roles.dtype)
+    block = np.zeros((M, 1 << nA, L), dtype=roles.dtype)
     chain[:, 0, 0] = 1.0
     levels = _levels(nA)
+    pf = [_pair_weights(tokens, ids, int(z), M) for z in ids]
     for r in range(1, nA + 1):
         sets = levels[r]
         for z in range(nA):
@@ -84,8 +130,12 @@ def _chain_orders(last: np.ndarray, ante: np.ndarray, into: np.ndarray, ids: np.
             zg = int(ids[z])
             valid = (glob[rest][None, :] & ~into[:, zg][:, None]) == 0
             src = chain[:, rest, :] * valid[:, :, None]
-            chain[:, has, :] += _times_element(ante[:, zg, :], src)
-            block[:, has, :] += _times_element(last[:, zg, :], src)
+            weights = pf[z]
+            paired = src if weights is None else src * weights[:, rest][:, :, None]
+            for target, role in ((chain, 1), (block, 0)):
+                target[:, has, :] += _times_element(roles[role, 0, :, zg, :], paired)
+                if weights is not None:
+                    target[:, has, :] += _times_element(roles[role, 1, :, zg, :], src)
     return chain, block
 
 
@@ -104,7 +154,7 @@ def _submask_products(read: np.ndarray, write: np.ndarray, weights: np.ndarray, 
     levels = _levels(nA)
     for s in range(1, nA + 1):
         sets = levels[s]
-        level = np.zeros((M, sets.size, width, L))
+        level = np.zeros((M, sets.size, width, L), dtype=read.dtype)
         for b in range(1, s + 1):
             shift = block_shift[b]
             if shift >= L or block_scale[b] == 0.0:
@@ -129,15 +179,18 @@ def _poly_product_sum(x: np.ndarray, y: np.ndarray, length: int) -> np.ndarray:
     M, _, Lx = x.shape
     Ly = y.shape[-1]
     outer = np.matmul(x.transpose(0, 2, 1), y.reshape(M, y.shape[1], -1)).reshape(M, Lx, *y.shape[2:])
-    out = np.zeros((M, *y.shape[2:-1], length))
+    out = np.zeros((M, *y.shape[2:-1], length), dtype=np.result_type(x, y))
     for a in range(min(Lx, length)):
         top = min(Ly, length - a)
         out[..., a:a + top] += outer[:, a, ..., :top]
     return out
 
 
-def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool) -> np.ndarray:
-    """Prior mass by clause count (and block count if by_blocks) of constraints whose antecedents lie in a_mask."""
+def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
+               tokens: TokenWeights | None = None) -> np.ndarray:
+    """Prior mass by clause count (and block count if by_blocks) of constraints whose antecedents lie in a_mask;
+    with token weights, every formula also weighted by its similarity tokens' weights (rows of tokens: rows
+    of the batch)."""
     voc = prior.vocabulary
     n, M, p = voc.n, len(batch), prior.p_new_block
     ids, glob = _local_masks(a_mask)
@@ -145,21 +198,36 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool) ->
     t_ids = [i for i in range(n) if not a_mask >> i & 1]
     nT = len(t_ids)
     L = 2 * n + (nA + 1) * nA // 2 + 1
-    last, ante = element_polys(prior, batch)
-    chain, block = _chain_orders(last, ante, batch.into, ids, glob)
+    if tokens is None:
+        last, ante = element_polys(prior, batch)
+        roles = np.stack([last, ante])[:, None]  # with_g axis of one: the whole polynomial
+        dtype = np.dtype(float)
+    else:
+        roles = element_parts(prior, batch, tokens)
+        dtype = roles.dtype
+    chain, block = _chain_orders(roles, batch.into, ids, glob, tokens)
+    last_all = roles[0].sum(axis=0)  # (M, n, 3)
     full = (1 << nA) - 1
     # G: objects of T alone or as tails of chains inside A (the chain's b elements bring b more pairs)
-    G = np.zeros((M, 1 << nA, L))
+    G = np.zeros((M, 1 << nA, L), dtype=dtype)
     G[:, 0, 0] = 1.0
     tail_scale = [0.0] + [p * (1 - p) ** b for b in range(1, nA + 1)]
     tail_shift = [0] + [(b + 1) * b // 2 for b in range(1, nA + 1)]
     for zg in t_ids:
         fits = (glob[None, :] & ~batch.into[:, zg][:, None]) == 0  # α may all precede z
+        body = chain * fits[:, :, None]
         tails = np.zeros_like(G)
-        _submask_products(G, tails, chain * fits[:, :, None], nA, False, tail_scale, tail_shift)
-        G = _times_element(p * last[:, zg, :], G) + _times_element(last[:, zg, :], tails)
+        weights = _pair_weights(tokens, ids, zg, M)
+        _submask_products(G, tails, body if weights is None else body * weights[:, :, None], nA, False,
+                          tail_scale, tail_shift)
+        new = _times_element(p * last_all[:, zg, :], G) + _times_element(roles[0, 0, :, zg, :], tails)
+        if weights is not None:  # a forbidden tail drops its order tokens
+            plain = np.zeros_like(G)
+            _submask_products(G, plain, body, nA, False, tail_scale, tail_shift)
+            new += _times_element(roles[0, 1, :, zg, :], plain)
+        G = new
     # H: A cut into j tail-less chains
-    H = np.zeros((M, 1 << nA, nA + 1, L))
+    H = np.zeros((M, 1 << nA, nA + 1, L), dtype=dtype)
     H[:, 0, 0, 0] = 1.0
     if nA:
         block_scale = [0.0] + [p * (1 - p) ** (b - 1) for b in range(1, nA + 1)]
@@ -171,8 +239,8 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool) ->
     Hc = H[:, complement] * scale[None, None, :, None]
     if by_blocks:
         z = _poly_product_sum(G, Hc, L)  # (M, nA + 1, L)
-        out = np.zeros((M, n + 1, L))
+        out = np.zeros((M, n + 1, L), dtype=dtype)
         out[:, nT:] = z
     else:
         out = _poly_product_sum(G, Hc.sum(axis=2), L)[:, None, :]
-    return _times_extra(prior, batch.g_extra, out)
+    return _times_extra(prior, batch.g_extra, out, tokens)
