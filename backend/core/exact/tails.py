@@ -25,7 +25,7 @@ from functools import lru_cache
 import numpy as np
 
 from .batch import Batch
-from .chains import ChainPrior, TokenWeights, _levels, _pairs, _times_element, _times_extra
+from .chains import ChainPrior, TokenWeights, _levels, _pairs, _times_extra
 
 
 def antecedents(batch: Batch) -> np.ndarray:
@@ -54,6 +54,14 @@ def element_polys(prior: ChainPrior, batch: Batch) -> tuple[np.ndarray, np.ndarr
     if prior.require_satisfiable:  # an earlier element of a chain must occur: it cannot be forbidden
         ante[:, :, 1] = np.where(f_ok, (1 - qg_i) * qf, 0.0)
     return last, ante
+
+
+def _times_element(phi: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Multiply (M, K, L) polynomials by per-constraint short polynomials phi (M, d), cut to length L."""
+    out = poly * phi[:, None, 0:1]
+    for d in range(1, phi.shape[-1]):
+        out[:, :, d:] += poly[:, :, :-d] * phi[:, None, d:d + 1]
+    return out
 
 
 @lru_cache(maxsize=64)
@@ -116,7 +124,7 @@ def _chain_orders(roles: np.ndarray, into: np.ndarray, ids: np.ndarray, glob: np
     roles[role, with_g, M, n, 3] (role 0 last, 1 earlier); with token weights, the order tokens into an
     element count when it is not forbidden (with_g 0); without, with_g 0 holds the whole polynomial."""
     M, nA = into.shape[0], ids.size
-    L = 2 * nA + 1
+    L = (roles.shape[-1] - 1) * nA + 1
     chain = np.zeros((M, 1 << nA, L), dtype=roles.dtype)
     block = np.zeros((M, 1 << nA, L), dtype=roles.dtype)
     chain[:, 0, 0] = 1.0
@@ -140,13 +148,14 @@ def _chain_orders(roles: np.ndarray, into: np.ndarray, ids: np.ndarray, glob: np
 
 
 def _submask_products(read: np.ndarray, write: np.ndarray, weights: np.ndarray, nA: int, first_only: bool,
-                      block_scale: list[float], block_shift: list[int]) -> None:
+                      block_scale: list[float], block_shift: list[int], read_degree: list[int]) -> None:
     """write[S] += sum over non-empty α within S (holding min S if first_only) of read[S \\ α] * weights[α].
 
     read and write (M, 2^nA, *mid, L) may be views of one table: level by level, a set reads only smaller
     ones, so a recursion is written in place. α's polynomial (weights, (M, 2^nA, Lw)) is scaled by
-    block_scale[|α|] and shifted by block_shift[|α|] degrees; products past degree L - 1 are dropped
-    (the callers' L bounds every formula's clause count, so they are zero).
+    block_scale[|α|] and shifted by block_shift[|α|] degrees; rows of read for sets of size r have degree
+    at most read_degree[r]. Products past degree L - 1 are dropped (the callers' L bounds every formula's
+    clause count, so they are zero).
     """
     M, L = read.shape[0], read.shape[-1]
     mid = read.shape[2:-1]
@@ -164,13 +173,15 @@ def _submask_products(read: np.ndarray, write: np.ndarray, weights: np.ndarray, 
                 keep = (B & (S & -S)) != 0
                 B, R = B[keep], R[keep]
                 per = math.comb(s - 1, b - 1)
-            d_max = min(2 * b + 1, weights.shape[-1], L - shift)
+            d_max = min(weights.shape[-1], L - shift)
+            LR = min(L, read_degree[s - b] + 1)
             blk = weights[:, B, :d_max] * block_scale[b]
-            rest = read[:, R].reshape(M, sets.size, per, width * L)
+            rest = read[:, R, ..., :LR].reshape(M, sets.size, per, width * LR)
             prod = np.matmul(blk.reshape(M, sets.size, per, d_max).transpose(0, 1, 3, 2), rest)
-            prod = prod.reshape(M, sets.size, d_max, width, L)
+            prod = prod.reshape(M, sets.size, d_max, width, LR)
             for d in range(d_max):
-                level[:, :, :, shift + d:] += prod[:, :, d, :, :L - shift - d]
+                top = min(LR, L - shift - d)
+                level[:, :, :, shift + d:shift + d + top] += prod[:, :, d, :, :top]
         write[:, sets] += level.reshape(M, sets.size, *mid, L)
 
 
@@ -197,7 +208,6 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
     nA = ids.size
     t_ids = [i for i in range(n) if not a_mask >> i & 1]
     nT = len(t_ids)
-    L = 2 * n + (nA + 1) * nA // 2 + 1
     if tokens is None:
         last, ante = element_polys(prior, batch)
         roles = np.stack([last, ante])[:, None]  # with_g axis of one: the whole polynomial
@@ -205,42 +215,50 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
     else:
         roles = element_parts(prior, batch, tokens)
         dtype = roles.dtype
+    e = 2 if roles[..., 2].any() else 1  # clauses an object brings besides its orders (F and G, or one)
+    roles = roles[..., :e + 1]
+    L = e * n + (nA + 1) * nA // 2 + 1
     chain, block = _chain_orders(roles, batch.into, ids, glob, tokens)
-    last_all = roles[0].sum(axis=0)  # (M, n, 3)
+    last_all = roles[0].sum(axis=0)  # (M, n, e + 1)
     full = (1 << nA) - 1
-    # G: objects of T alone or as tails of chains inside A (the chain's b elements bring b more pairs)
-    G = np.zeros((M, 1 << nA, L), dtype=dtype)
-    G[:, 0, 0] = 1.0
-    tail_scale = [0.0] + [p * (1 - p) ** b for b in range(1, nA + 1)]
-    tail_shift = [0] + [(b + 1) * b // 2 for b in range(1, nA + 1)]
-    for zg in t_ids:
-        fits = (glob[None, :] & ~batch.into[:, zg][:, None]) == 0  # α may all precede z
-        body = chain * fits[:, :, None]
-        tails = np.zeros_like(G)
-        weights = _pair_weights(tokens, ids, zg, M)
-        _submask_products(G, tails, body if weights is None else body * weights[:, :, None], nA, False,
-                          tail_scale, tail_shift)
-        new = _times_element(p * last_all[:, zg, :], G) + _times_element(roles[0, 0, :, zg, :], tails)
-        if weights is not None:  # a forbidden tail drops its order tokens
-            plain = np.zeros_like(G)
-            _submask_products(G, plain, body, nA, False, tail_scale, tail_shift)
-            new += _times_element(roles[0, 1, :, zg, :], plain)
-        G = new
     # H: A cut into j tail-less chains
     H = np.zeros((M, 1 << nA, nA + 1, L), dtype=dtype)
     H[:, 0, 0, 0] = 1.0
     if nA:
         block_scale = [0.0] + [p * (1 - p) ** (b - 1) for b in range(1, nA + 1)]
         block_shift = [0] + [b * (b - 1) // 2 for b in range(1, nA + 1)]
-        _submask_products(H[:, :, :-1], H[:, :, 1:], block, nA, True, block_scale, block_shift)  # a block adds one to j
-    complement = full ^ np.arange(1 << nA)
+        degree = [e * r + r * (r - 1) // 2 for r in range(nA + 1)]
+        _submask_products(H[:, :, :-1], H[:, :, 1:], block, nA, True, block_scale, block_shift, degree)  # j + 1
     ks = nT + np.arange(nA + 1)
     scale = np.array([math.exp(math.lgamma(k + 1) - math.lgamma(n + 1)) for k in ks]) / p
-    Hc = H[:, complement] * scale[None, None, :, None]
+    H = H * scale[None, None, :, None]
+    # G: objects of T alone or as tails of chains inside A (the chain's b elements bring b more pairs), on top
+    # of the tail-less chains (H, collapsed over j), or from nothing when the block count is kept
     if by_blocks:
-        z = _poly_product_sum(G, Hc, L)  # (M, nA + 1, L)
-        out = np.zeros((M, n + 1, L), dtype=dtype)
-        out[:, nT:] = z
+        G = np.zeros((M, 1 << nA, L), dtype=dtype)
+        G[:, 0, 0] = 1.0
     else:
-        out = _poly_product_sum(G, Hc.sum(axis=2), L)[:, None, :]
+        G = H.sum(axis=2)
+    tail_scale = [0.0] + [p * (1 - p) ** b for b in range(1, nA + 1)]
+    tail_shift = [0] + [(b + 1) * b // 2 for b in range(1, nA + 1)]
+    for t, zg in enumerate(t_ids):
+        degree = [e * (r + t) + (r + 1) * r // 2 for r in range(nA + 1)]
+        fits = (glob[None, :] & ~batch.into[:, zg][:, None]) == 0  # α may all precede z
+        body = chain * fits[:, :, None]
+        tails = np.zeros_like(G)
+        weights = _pair_weights(tokens, ids, zg, M)
+        _submask_products(G, tails, body if weights is None else body * weights[:, :, None], nA, False,
+                          tail_scale, tail_shift, degree)
+        new = _times_element(p * last_all[:, zg, :], G) + _times_element(roles[0, 0, :, zg, :], tails)
+        if weights is not None:  # a forbidden tail drops its order tokens
+            plain = np.zeros_like(G)
+            _submask_products(G, plain, body, nA, False, tail_scale, tail_shift, degree)
+            new += _times_element(roles[0, 1, :, zg, :], plain)
+        G = new
+    if by_blocks:
+        complement = full ^ np.arange(1 << nA)
+        out = np.zeros((M, n + 1, L), dtype=dtype)
+        out[:, nT:] = _poly_product_sum(G, H[:, complement], L)  # (M, nA + 1, L)
+    else:
+        out = G[:, full][:, None, :]
     return _times_extra(prior, batch.g_extra, out, tokens)
