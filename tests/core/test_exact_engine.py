@@ -76,3 +76,35 @@ def test_tails_dp_with_token_weights_equals_the_subset_dp(n, m, forbid, p_new, s
     mine = prior_mass(prior, Batch.of(cons, n), tokens=tokens)
     reference = _mass(prior, cons, False, tokens)[:, 0]
     np.testing.assert_allclose(mine, reference, rtol=1e-12, atol=1e-300)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_kept_executions_reach_every_score(seed):
+    """Every execution scores the same as one the search's moves keep, and the moves keep fewer."""
+    from itertools import permutations
+
+    from tableteach.core.domain import Domain
+    from tableteach.core.exact.learner import posterior_after
+    from tableteach.core.exact.moves import Moves
+
+    rng = np.random.default_rng(seed)
+    objects, threats = ("a", "b", "c", "d", "e"), ("t0", "t1")
+    domain = Domain("small", objects + threats, objects, threats, False, 1.0, "visit")
+    props = objects + threats
+    picks = [tuple(rng.permutation(props[:4])[: int(rng.integers(2, 5))]) for _ in range(3)]
+    data = [(domain.trace_of(picks[0]), True), (domain.trace_of(picks[0][::-1]), True),
+            (domain.trace_of(picks[1] + ("t0",)), bool(rng.random() < 0.5)), (domain.trace_of(picks[2]), False)]
+    post = posterior_after(domain, "chains-2020", data)
+    moves = Moves.of(post, props)
+    kept, stack = [], [((), 0)]
+    while stack:
+        events, used = stack.pop()
+        kept.append(tuple(props[i] for i in events))
+        stack += [(events + (z,), used | 1 << z) for z in moves.children(events, used)]
+    everything = [e for k in range(len(props) + 1) for e in permutations(props, k)]
+    voc = post.prior.vocabulary
+    mine = post.p_within([voc.of_events(e) for e in kept])
+    every = post.p_within([voc.of_events(e) for e in everything])
+    assert len(kept) < len(everything) / 4
+    gaps = np.abs(every[:, None] - mine[None, :]).min(axis=1)
+    assert gaps.max() < 1e-12
