@@ -27,6 +27,12 @@ def prior_mass(prior: ChainPrior, batch: Batch, by_blocks: bool = False,
     out = np.zeros((len(batch), K, prior.degree + 1), dtype=float if tokens is None else tokens.f.dtype)
     if len(batch) == 0:
         return out if by_blocks else out[:, 0]
+    if tokens is None:  # equal rows (a bound that contains a pattern's data meets it in the data) once
+        keys = np.concatenate([batch.g_ok[:, None], batch.f_ok[:, None], batch.g_extra[:, None], batch.into], axis=1)
+        unique, first, inverse = np.unique(keys, axis=0, return_index=True, return_inverse=True)
+        if unique.shape[0] < len(batch):
+            once = prior_mass(prior, batch.take(first), by_blocks)
+            return once[inverse.reshape(-1)]
     full = (1 << n) - 1
     a_masks = antecedents(batch)
     one_order = not 0.0 < prior.p_new_block < 1.0

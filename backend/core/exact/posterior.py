@@ -241,11 +241,12 @@ class ExactPosterior:
             e_log_prior += float(p_k @ np.array([math.lgamma(j + 1) for j in k]))
         elif p >= 1.0:
             e_log_prior += math.lgamma(n + 1)  # all singletons: n!/n! whatever the order
-        marg = self.marginals("GF")
         for kind, q, count in (("G", prior.p_forbid, len(voc.forbiddable)), ("F", prior.p_eventually, n)):
-            expected = sum(v for key, v in marg.items() if key[0] == kind)
             if count and 0.0 < q < 1.0:
-                e_log_prior += count * math.log(1 - q) + expected * math.log(q / (1 - q))
+                e_log_prior += count * math.log(1 - q)
+                if q != 0.5:  # the clause counts' expectations only matter when a clause changes the weight
+                    expected = sum(self.marginals(kind).values())
+                    e_log_prior += expected * math.log(q / (1 - q))
         return float(self.log_evidence - e_log_prior - e_log_f)
 
     def observe(self, datum: Datum) -> "ExactPosterior":

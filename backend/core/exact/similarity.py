@@ -58,6 +58,21 @@ def _weights(voc: Vocabulary, tokens: set[tuple[str, ...]], u: np.ndarray, y: co
     return TokenWeights(g, f, pair, g_extra)
 
 
+def _most_tokens(posterior: ExactPosterior) -> int:
+    """A bound on the tokens of any formula the posterior gives weight: every one lies within its weakest
+    data pattern (G and item tokens it allows, and no more orders than its chains inside the objects
+    that may come first, plus a tail each, can hold)."""
+    voc = posterior.prior.vocabulary
+    n = voc.n
+    weakest = posterior._pattern_batch().take(np.array([0]))
+    first = int(np.bitwise_or.reduce(weakest.into[0])) if n else 0
+    n_first = bin(first).count("1")
+    g = bin(int(weakest.g_ok[0]) & voc.forbiddable_orderable).count("1") + bin(int(weakest.g_extra[0])).count("1")
+    items = bin(int(weakest.f_ok[0]) | first).count("1")
+    orders = min(n * (n - 1) // 2, (n_first + 1) * n_first // 2, sum(bin(int(v)).count("1") for v in weakest.into[0]))
+    return g + items + orders
+
+
 def expected_similarity(posterior: ExactPosterior, truth: Iterable[Clause], metric: str = "authors") -> float:
     """E_P[L(phi, truth)] under the exact posterior, for a truth given as its clauses."""
     if metric != "authors":
@@ -70,8 +85,7 @@ def expected_similarity(posterior: ExactPosterior, truth: Iterable[Clause], metr
         raise ValueError(f"the ground truth names {', '.join(unknown)}, which are not propositions of this task")
     tokens = truth_tokens(truth)
     t = len(tokens)
-    n = voc.n
-    most = len(voc.forbiddable) + n + n * (n - 1) // 2  # tokens a formula can have
+    most = _most_tokens(posterior)
     if t == 0:
         nodes, weights, power = np.zeros(1), np.ones(1), 0
     else:

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 from functools import lru_cache
+from typing import Sequence
 
 import numpy as np
 
@@ -147,23 +148,26 @@ def _chain_orders(roles: np.ndarray, into: np.ndarray, ids: np.ndarray, glob: np
     return chain, block
 
 
-def _submask_products(read: np.ndarray, write: np.ndarray, weights: np.ndarray, nA: int, first_only: bool,
-                      block_scale: list[float], block_shift: list[int], read_degree: list[int]) -> None:
-    """write[S] += sum over non-empty α within S (holding min S if first_only) of read[S \\ α] * weights[α].
+def _submask_products(read: np.ndarray, writes: Sequence[np.ndarray], weights: Sequence[np.ndarray], nA: int,
+                      first_only: bool, block_scale: list[float], block_shift: list[int],
+                      read_degree: list[int]) -> None:
+    """writes[v][S] += sum over non-empty α within S (holding min S if first_only) of read[S \\ α] * weights[v][α].
 
-    read and write (M, 2^nA, *mid, L) may be views of one table: level by level, a set reads only smaller
-    ones, so a recursion is written in place. α's polynomial (weights, (M, 2^nA, Lw)) is scaled by
-    block_scale[|α|] and shifted by block_shift[|α|] degrees; rows of read for sets of size r have degree
-    at most read_degree[r]. Products past degree L - 1 are dropped (the callers' L bounds every formula's
-    clause count, so they are zero).
+    read and the writes (M, 2^nA, *mid, L) may be views of one table: level by level, a set reads only
+    smaller ones, so a recursion is written in place. α's polynomials (weights[v], (M, 2^nA, Lw)) are scaled
+    by block_scale[|α|] and shifted by block_shift[|α|] degrees; rows of read for sets of size r have
+    degree at most read_degree[r]. Products past degree L - 1 are dropped (the callers' L bounds every
+    formula's clause count, so they are zero). Several weights share one gather of read.
     """
     M, L = read.shape[0], read.shape[-1]
     mid = read.shape[2:-1]
     width = int(np.prod(mid)) if mid else 1
     levels = _levels(nA)
+    V = len(weights)
+    Lw = weights[0].shape[-1]
     for s in range(1, nA + 1):
         sets = levels[s]
-        level = np.zeros((M, sets.size, width, L), dtype=read.dtype)
+        level = np.zeros((V, M, sets.size, width, L), dtype=np.result_type(read, *weights))
         for b in range(1, s + 1):
             shift = block_shift[b]
             if shift >= L or block_scale[b] == 0.0:
@@ -173,16 +177,17 @@ def _submask_products(read: np.ndarray, write: np.ndarray, weights: np.ndarray, 
                 keep = (B & (S & -S)) != 0
                 B, R = B[keep], R[keep]
                 per = math.comb(s - 1, b - 1)
-            d_max = min(weights.shape[-1], L - shift)
+            d_max = min(Lw, L - shift)
             LR = min(L, read_degree[s - b] + 1)
-            blk = weights[:, B, :d_max] * block_scale[b]
+            blk = np.concatenate([w[:, B, :d_max] for w in weights], axis=2) * block_scale[b]  # (M, pairs, V d)
             rest = read[:, R, ..., :LR].reshape(M, sets.size, per, width * LR)
-            prod = np.matmul(blk.reshape(M, sets.size, per, d_max).transpose(0, 1, 3, 2), rest)
-            prod = prod.reshape(M, sets.size, d_max, width, LR)
+            prod = np.matmul(blk.reshape(M, sets.size, per, V * d_max).transpose(0, 1, 3, 2), rest)
+            prod = prod.reshape(M, sets.size, V, d_max, width, LR)
             for d in range(d_max):
                 top = min(LR, L - shift - d)
-                level[:, :, :, shift + d:shift + d + top] += prod[:, :, d, :, :top]
-        write[:, sets] += level.reshape(M, sets.size, *mid, L)
+                level[:, :, :, :, shift + d:shift + d + top] += np.moveaxis(prod[:, :, :, d, :, :top], 2, 0)
+        for v, write in enumerate(writes):
+            write[:, sets] += level[v].reshape(M, sets.size, *mid, L)
 
 
 def _poly_product_sum(x: np.ndarray, y: np.ndarray, length: int) -> np.ndarray:
@@ -228,7 +233,7 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
         block_scale = [0.0] + [p * (1 - p) ** (b - 1) for b in range(1, nA + 1)]
         block_shift = [0] + [b * (b - 1) // 2 for b in range(1, nA + 1)]
         degree = [e * r + r * (r - 1) // 2 for r in range(nA + 1)]
-        _submask_products(H[:, :, :-1], H[:, :, 1:], block, nA, True, block_scale, block_shift, degree)  # j + 1
+        _submask_products(H[:, :, :-1], [H[:, :, 1:]], [block], nA, True, block_scale, block_shift, degree)  # j+1
     ks = nT + np.arange(nA + 1)
     scale = np.array([math.exp(math.lgamma(k + 1) - math.lgamma(n + 1)) for k in ks]) / p
     H = H * scale[None, None, :, None]
@@ -247,14 +252,15 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
         body = chain * fits[:, :, None]
         tails = np.zeros_like(G)
         weights = _pair_weights(tokens, ids, zg, M)
-        _submask_products(G, tails, body if weights is None else body * weights[:, :, None], nA, False,
-                          tail_scale, tail_shift, degree)
-        new = _times_element(p * last_all[:, zg, :], G) + _times_element(roles[0, 0, :, zg, :], tails)
-        if weights is not None:  # a forbidden tail drops its order tokens
-            plain = np.zeros_like(G)
-            _submask_products(G, plain, body, nA, False, tail_scale, tail_shift, degree)
-            new += _times_element(roles[0, 1, :, zg, :], plain)
-        G = new
+        if weights is None:
+            _submask_products(G, [tails], [body], nA, False, tail_scale, tail_shift, degree)
+            G = _times_element(p * last_all[:, zg, :], G) + _times_element(roles[0, 0, :, zg, :], tails)
+            continue
+        plain = np.zeros_like(G)  # a forbidden tail drops its order tokens
+        _submask_products(G, [tails, plain], [body * weights[:, :, None], body], nA, False, tail_scale, tail_shift,
+                          degree)
+        G = (_times_element(p * last_all[:, zg, :], G) + _times_element(roles[0, 0, :, zg, :], tails)
+             + _times_element(roles[0, 1, :, zg, :], plain))
     if by_blocks:
         complement = full ^ np.arange(1 << nA)
         out = np.zeros((M, n + 1, L), dtype=dtype)
