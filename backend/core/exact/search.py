@@ -6,7 +6,9 @@ the prefix has not yet violated (``upper``), and by at least those it has alread
 good (``lower``: its F items and its orders whose antecedent occurred, no G clause). Both bounds
 and the scores are exact posterior probabilities. The min-regret plan maximises P(acceptable);
 the active query minimises |2 P(acceptable) - 1|. Only one execution of each set that provably
-scores the same is visited (``moves.py``). With ``max_expansions`` large enough the search is
+scores the same is visited (``moves.py``). When the moves keep at most ``EXHAUSTIVE_ACTIVE``
+executions, the active query scores all of them in one batch (proven; ties: the first, shortest
+and in proposition order); past that it searches. With ``max_expansions`` large enough the search is
 exhaustive where the bounds do not prune, so its result is the proven optimum
 (``SearchResult.proven``); otherwise it is the best execution found. Prefixes are expanded
 ``batch_size`` at a time (lowest bound first, then ``_priority``), their children scored in one
@@ -23,7 +25,7 @@ from typing import Sequence
 
 import numpy as np
 
-from .batch import Batch
+from .batch import Batch, of_events
 from .constraints import Constraint, Vocabulary
 from .moves import Moves, lower
 from .posterior import ExactPosterior
@@ -32,6 +34,8 @@ TOLERANCE = 1e-12
 OBJECTIVES = ("min-regret", "active")
 # The active query's bounds rarely prune (most prefixes can still end either way), so it gets a budget.
 DEFAULT_EXPANSIONS = {"min-regret": 2_000, "active": 64}
+# Up to this many executions kept by the moves, the active query scores them all (one batch) and is proven.
+EXHAUSTIVE_ACTIVE = 5_000
 
 
 @dataclass(frozen=True)
@@ -110,6 +114,12 @@ def best_execution(
     voc = posterior.prior.vocabulary
     moves = Moves.of(posterior, propositions)
     n = voc.n
+    if objective == "active" and max_expansions > 0:
+        every = _kept_executions(moves, EXHAUSTIVE_ACTIVE)
+        if every is not None:
+            probs = posterior.p_within(of_events(voc, [tuple(moves.names[i] for i in e) for e in every]))
+            k = int(np.argmin(np.abs(2.0 * probs - 1.0)))  # the first of the ties, in the walk's order
+            return SearchResult(tuple(moves.names[i] for i in every[k]), float(probs[k]), len(every), True)
     root = _Node((), 0, Batch.of([voc.of_events(())], n), Batch.of([voc.everything()], n))
     root_p, lo, hi = posterior.p_within(Batch.concat([root.exact, lower(root.exact), root.upper]))
     best: tuple[tuple[int, ...], float, float] = ((), float(root_p), _score(objective, float(root_p)))
@@ -148,6 +158,18 @@ def best_execution(
                                           child))
     proven = best[2] <= perfect + TOLERANCE or not any(b < best[2] - TOLERANCE for b, _, _, _ in frontier)
     return SearchResult(tuple(moves.names[i] for i in best[0]), best[1], expanded, proven)
+
+
+def _kept_executions(moves: Moves, cap: int) -> list[tuple[int, ...]] | None:
+    """Every execution the moves keep, shortest first and in proposition order; None if there are more than cap."""
+    level: list[tuple[tuple[int, ...], int]] = [((), 0)]
+    out: list[tuple[int, ...]] = []
+    while level:
+        out += [events for events, _ in level]
+        if len(out) > cap:
+            return None
+        level = [(events + (z,), used | 1 << z) for events, used in level for z in moves.children(events, used)]
+    return out
 
 
 def _score(objective: str, p: float) -> float:
