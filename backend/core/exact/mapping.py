@@ -432,7 +432,7 @@ class _Node:
 @dataclass
 class _Memo:
     """What the MAP search keeps of one max-product DP: its totals, the maximisers asked for so far, and the
-    tables while they are at hand."""
+    tables while a maximiser is being walked back."""
 
     total: np.ndarray
     formulas: dict[int, Formula]
@@ -451,7 +451,7 @@ def clear_memo() -> None:
 
 
 def _memos(prior: ChainPrior, pairs: Sequence[tuple[Constraint, Required]]) -> list[_Memo]:
-    """The memo of each pair's DP, the missing ones built together (their tables kept until ``_release``)."""
+    """The memo of each pair's DP, the missing ones built together (their totals kept, not their tables)."""
     keys = [(prior, con, req) for con, req in pairs]
     missing = list(dict.fromkeys(k for k in keys if k not in _MEMO))
     dps = [_MaxDP(prior, con, req, build=False) for _, con, req in missing]
@@ -460,7 +460,7 @@ def _memos(prior: ChainPrior, pairs: Sequence[tuple[Constraint, Required]]) -> l
     for start in range(0, len(dps), step):
         _build_many(dps[start:start + step])
     for key, dp in zip(missing, dps, strict=True):
-        _MEMO[key] = _Memo(dp.total, {}, dp)
+        _MEMO[key] = _Memo(dp.total, {}, None)  # tables are megabytes: a maximiser rebuilds its DP if asked
     out = []
     for key in keys:
         _MEMO.move_to_end(key)
@@ -477,13 +477,8 @@ def _maximiser(prior: ChainPrior, con: Constraint, req: Required, N: int) -> For
         if memo.dp is None:
             memo.dp = _MaxDP(prior, con, req)
         memo.formulas[N] = memo.dp.formula(N)
-    return memo.formulas[N]
-
-
-def _release() -> None:
-    """Drop the tables the memos hold (the totals and maximisers stay)."""
-    for memo in _MEMO.values():
         memo.dp = None
+    return memo.formulas[N]
 
 
 def _log_factor(d: Datum, sat: bool, N: np.ndarray, log_eps: float) -> np.ndarray:
@@ -586,9 +581,7 @@ def map_formula(posterior: ExactPosterior, max_dps: int = 10_000) -> MapResult:
                 heapq.heappush(heap, (-child.bound, counter, c_con, c_req, child))
     else:
         if heap and runs >= max_dps:
-            _release()
             raise RuntimeError(f"MAP search stopped after {runs} max-product DPs without a proof; raise max_dps")
-    _release()
     return MapResult(incumbent, inc_score - posterior.log_evidence, incumbent.text(prior), runs)
 
 
