@@ -456,7 +456,7 @@ def _memos(prior: ChainPrior, pairs: Sequence[tuple[Constraint, Required]]) -> l
     missing = list(dict.fromkeys(k for k in keys if k not in _MEMO))
     dps = [_MaxDP(prior, con, req, build=False) for _, con, req in missing]
     n = prior.vocabulary.n
-    step = max(1, (64 << 20) // ((1 << n) * (n + 2) * (prior.degree + 1) * 8))
+    step = max(1, (16 << 20) // ((1 << n) * (n + 2) * (prior.degree + 1) * 8))  # its temporaries are ~10x
     for start in range(0, len(dps), step):
         _build_many(dps[start:start + step])
     for key, dp in zip(missing, dps, strict=True):
