@@ -3,6 +3,7 @@
     python -m tableteach.experiments.compare user-study --task1 DIR --task2 DIR --out DIR
     python -m tableteach.experiments.compare noise DIR [DIR ...] --n-query 6 --out DIR
     python -m tableteach.experiments.compare paired A_DIR B_DIR --label "information gain - uncertainty" --out DIR
+    python -m tableteach.experiments.compare sizes DIR [DIR ...] --out DIR
 
 Each DIR is a sweep folder written by ``tableteach experiment`` (runs.csv and config.json).
 """
@@ -196,6 +197,55 @@ def plot_noise(table: Sequence[dict[str, object]], title: str, stem: Path) -> li
     return _save(fig, stem)
 
 
+SIZE_COLUMNS = ("waypoints", "threats", "comparison", "n_query", "runs", "similarity_diff_mean",
+                "similarity_diff_mean_lo", "similarity_diff_mean_hi", "share_better")
+
+
+def size_table(folders: Sequence[Path | str]) -> list[dict[str, object]]:
+    """Active's paired advantage in final similarity (paired.csv) of synthetic sweeps of several sizes."""
+    out: list[dict[str, object]] = []
+    for folder in folders:
+        settings = read_settings(folder)
+        if settings.get("domain") != "synthetic":
+            raise ValueError(f"{folder} is a {settings.get('domain')} sweep; expected synthetic sweeps of "
+                             "several sizes")
+        try:
+            with open(Path(folder) / "paired.csv", encoding="utf-8", newline="") as f:
+                rows = list(csv.DictReader(f))
+        except OSError as exc:
+            raise ValueError(f"{folder} has no paired.csv ({exc}); expected a finished sweep") from None
+        for r in rows:
+            out.append({"waypoints": int(settings.get("n_waypoints", 5)), "threats": int(settings.get("n_threats", 5)),
+                        "comparison": r["comparison"], "n_query": int(r["n_query"]), "runs": int(r["runs"]),
+                        **{k: float(r[k]) for k in SIZE_COLUMNS[5:]}})
+    return sorted(out, key=lambda r: (r["comparison"], r["waypoints"], r["threats"], r["n_query"]))
+
+
+def plot_sizes(table: Sequence[dict[str, object]], title: str, stem: Path) -> list[Path]:
+    """Active minus Batch (left) and minus Random (right), paired mean final similarity, against n_query."""
+    from .figures import _save, plt
+
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), constrained_layout=True, sharey=True)
+    sizes = sorted({(r["waypoints"], r["threats"]) for r in table})
+    for ax, comparison in zip(axes, ("active-batch", "active-random"), strict=True):
+        for k, (w, t) in enumerate(sizes):
+            mine = [r for r in table if r["comparison"] == comparison and (r["waypoints"], r["threats"]) == (w, t)]
+            x = np.array([r["n_query"] for r in mine], dtype=float) + (k - (len(sizes) - 1) / 2) * 0.08
+            y = np.array([r["similarity_diff_mean"] for r in mine], dtype=float)
+            err = [y - np.array([r["similarity_diff_mean_lo"] for r in mine], dtype=float),
+                   np.array([r["similarity_diff_mean_hi"] for r in mine], dtype=float) - y]
+            runs = mine[0]["runs"] if mine else 0
+            ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=f"{w} waypoints + {t} threats ({runs} runs)")
+        ax.axhline(0.0, color="grey", linewidth=0.8)
+        ax.set_xlabel("queries (n_query)")
+        ax.set_title(comparison.replace("-", " minus ").capitalize(), fontsize=9)
+        ax.grid(alpha=0.3)
+    axes[0].set_ylabel("paired difference, final similarity (mean, 95% CI)")
+    axes[0].legend(fontsize=8)
+    fig.suptitle(title, fontsize=9)
+    return _save(fig, stem)
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     """Command line: build the user-study or noise figure and table from finished sweeps."""
     parser = argparse.ArgumentParser(prog="python -m tableteach.experiments.compare", description=__doc__,
@@ -217,6 +267,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     paired.add_argument("--protocol", action="append", choices=list(PROTOCOLS),
                         help="only this protocol (repeatable; default all)")
     paired.add_argument("--out", required=True)
+    sizes = sub.add_parser("sizes", help="Active's paired advantage in synthetic sweeps of several sizes")
+    sizes.add_argument("folders", nargs="+")
+    sizes.add_argument("--out", required=True)
     args = parser.parse_args(argv)
     out = Path(args.out)
     try:
@@ -229,6 +282,11 @@ def main(argv: Sequence[str] | None = None) -> int:
             title = (f"User study in simulation: dinner table, 2 demonstrations + {n_query} queries, prior "
                      f"{s1['prior']}, {s1['demo_mode']} demonstrations, {s1['runs']} runs per task")
             plot_study(curves, title, out / "user_study")
+        elif args.what == "sizes":
+            table = size_table(args.folders)
+            write_csv(out / "sizes.csv", table, SIZE_COLUMNS)
+            plot_sizes(table, "Does Active's advantage grow with the size of the task? Synthetic domain, "
+                       "paired by run (same truth and demonstrations)", out / "sizes")
         elif args.what == "paired":
             from .paired_sweeps import PAIRED_SWEEP_COLUMNS, paired_sweep_differences, plot_paired_sweeps
             from .settings import ExperimentSettings

@@ -169,8 +169,14 @@ FOUR = ("a", "b", "c", "d")
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2, 3])
-def test_search_finds_the_exhaustive_optimum(seed):
+@pytest.mark.parametrize("scored_all", [True, False])
+def test_search_finds_the_exhaustive_optimum(seed, scored_all, monkeypatch):
+    """Both ways to the active query (every kept execution scored, or the branch and bound) and the plan."""
+    from tableteach.core.exact import search
     from tableteach.core.exact.search import best_execution
+
+    if not scored_all:
+        monkeypatch.setattr(search, "EXHAUSTIVE_ACTIVE", 0)
 
     rng = np.random.default_rng(seed)
     domain = Domain("four", FOUR, FOUR, FOUR, True, 1.0, "place")

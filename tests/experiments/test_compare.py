@@ -116,3 +116,20 @@ def test_weighted_pooling_gives_each_group_its_share_whatever_its_size():
     est, lo, hi = weighted_bootstrap_ci([np.arange(100.0), np.arange(100.0) + 1000], [3, 1], "median",
                                         np.random.default_rng(0), n_resamples=200)
     assert lo <= est <= hi and est == pytest.approx(66, abs=1)  # the 2/3 point of the first group
+
+
+def test_sizes_put_each_size_beside_the_others(tmp_path, capsys):
+    """Two synthetic sweeps of different sizes: one row per size, comparison and n_query, from their paired.csv."""
+    small = sweep(tmp_path, "small", domain="synthetic", n_waypoints=3, n_threats=2)
+    large = sweep(tmp_path, "large", domain="synthetic", n_waypoints=4, n_threats=2)
+    assert main(["sizes", str(small), str(large), "--out", str(tmp_path / "s")]) == 0
+    rows = read(tmp_path / "s" / "sizes.csv")
+    assert {(r["waypoints"], r["comparison"]) for r in rows} == {
+        (w, c) for w in ("3", "4") for c in ("active-batch", "active-random")}
+    paired = {r["comparison"]: r for r in read(large / "paired.csv")}
+    mine = next(r for r in rows if r["waypoints"] == "4" and r["comparison"] == "active-random")
+    assert mine["similarity_diff_mean"] == paired["active-random"]["similarity_diff_mean"]
+    assert (tmp_path / "s" / "sizes.png").exists() and (tmp_path / "s" / "sizes.svg").exists()
+    dinner = sweep(tmp_path, "dinner", domain="dinner-random")
+    assert main(["sizes", str(small), str(dinner), "--out", str(tmp_path / "o")]) == 2
+    assert "expected synthetic sweeps" in capsys.readouterr().err

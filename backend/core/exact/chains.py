@@ -208,21 +208,10 @@ def _token_block_orders(prior: ChainPrior, cons: Sequence[Constraint], tokens: T
 
 
 def prior_mass_by_count(prior: ChainPrior, cons: Sequence[Constraint], chunk: int = 64) -> np.ndarray:
-    """Z[M, N]: prior mass (unnormalised if conditioned) of the formulas within each constraint with N clauses."""
+    """Z[M, N]: prior mass (unnormalised if conditioned) of the formulas within each constraint with N clauses, by
+    the subset DP over all objects (``mass.prior_mass`` is the faster route; this one is its reference)."""
     out = [_mass(prior, list(cons[i:i + chunk]), False)[:, 0] for i in range(0, len(cons), chunk)]
     return np.concatenate(out, axis=0) if out else np.zeros((0, prior.degree + 1))
-
-
-def prior_mass_by_blocks(prior: ChainPrior, cons: Sequence[Constraint], chunk: int = 32) -> np.ndarray:
-    """Z[M, k, N]: as ``prior_mass_by_count``, split by the number k of chain blocks (singletons included)."""
-    out = [_mass(prior, list(cons[i:i + chunk]), True) for i in range(0, len(cons), chunk)]
-    n = prior.vocabulary.n
-    return np.concatenate(out, axis=0) if out else np.zeros((0, n + 1, prior.degree + 1))
-
-
-def prior_mass_with_tokens(prior: ChainPrior, cons: Sequence[Constraint], tokens: TokenWeights) -> np.ndarray:
-    """Z[M, N]: as ``prior_mass_by_count``, every formula also weighted by its similarity tokens' weights."""
-    return _mass(prior, list(cons), False, tokens)[:, 0]
 
 
 def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool, tokens: TokenWeights | None = None) -> np.ndarray:
@@ -275,21 +264,23 @@ def _mass(prior: ChainPrior, cons: list[Constraint], by_blocks: bool, tokens: To
                     level_sum[:, position[S_k[starts]], step:, shift:shift + acc.shape[-1]] += summed
             seq[:, sets] = level_sum
         total = seq[:, full] / (p * math.factorial(n))
-    return _times_extra(prior, cons, total, tokens)
+    return _times_extra(prior, np.array([c.g_extra for c in cons], dtype=np.int64), total, tokens)
 
 
-def _times_extra(prior: ChainPrior, cons: list[Constraint], poly: np.ndarray,
+def _times_extra(prior: ChainPrior, g_extra: np.ndarray, poly: np.ndarray,
                  tokens: TokenWeights | None = None) -> np.ndarray:
-    """Multiply in the independent G clauses of the forbiddable-only propositions (last axis: N)."""
+    """Multiply in the independent G clauses of the forbiddable-only propositions (last axis: N); g_extra[M]
+    says which of them each constraint allows."""
     m = len(prior.vocabulary.extra)
     out = np.zeros((*poly.shape[:-1], prior.degree + 1), dtype=poly.dtype)
     out[..., :poly.shape[-1]] = poly
     qg = prior.p_forbid
+    extra = (poly.ndim - 1) * (None,)
     for j in range(m):
-        ok = np.array([c.g_extra >> j & 1 for c in cons], dtype=float)[:, None, None]
+        ok = ((np.asarray(g_extra, dtype=np.int64) >> j) & 1).astype(float)[(slice(None), *extra[1:])]
         if tokens is not None:
-            ok = ok * tokens.g_extra[:, j][:, None, None]
+            ok = ok * tokens.g_extra[:, j][(slice(None), *extra[1:])]
         shifted = np.zeros_like(out)
         shifted[..., 1:] = out[..., :-1]
-        out = out * (1 - qg) + shifted * qg * ok
+        out = out * (1 - qg) + shifted * qg * ok[..., None]
     return out

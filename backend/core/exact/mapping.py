@@ -9,6 +9,8 @@ every unknown datum. The best node's maximiser either attains its bound (then it
 other node's bound is no higher) or gets a datum wrong, and the node is split on that datum into
 "satisfies it" (C met with its clause set) and, for each allowed clause outside that set, "contains
 this clause and none of the earlier ones" (so violates it). The children partition the node.
+The DPs of the children of a split are built together (one batch axis), and memoised by (prior,
+constraint, required set): a teaching session's successive beliefs ask for the same ones again.
 Ties: the first maximiser found in the DP's fixed order (lowest subsets and objects first, F before
 G, fewest extra G clauses by index), deterministic but not the enumerating learner's lowest index.
 """
@@ -18,7 +20,8 @@ from __future__ import annotations
 import heapq
 import math
 from dataclasses import dataclass
-from typing import TypeVar
+from collections import OrderedDict
+from typing import Sequence, TypeVar
 
 import numpy as np
 
@@ -141,7 +144,21 @@ class _MaxDP:
     random generator (sum-product tables) to an exact draw from the prior restricted to the constraint.
     """
 
-    def __init__(self, prior: ChainPrior, con: Constraint, req: Required, total: bool = False) -> None:
+    chain: np.ndarray
+    block: np.ndarray
+    seq: np.ndarray | None
+    by_k: np.ndarray
+    Lc: int
+    top: np.ndarray
+    top_k: np.ndarray
+    extra: np.ndarray
+    extra_order: list[int]
+    n_required_extra: int
+    split: np.ndarray
+    total: np.ndarray
+
+    def __init__(self, prior: ChainPrior, con: Constraint, req: Required, total: bool = False,
+                 build: bool = True) -> None:
         self.prior, self.con, self.req = prior, con, req
         self.summing = total
         self._comb = np.logaddexp if total else np.maximum
@@ -173,76 +190,22 @@ class _MaxDP:
             for i in range(n):
                 for d, lw, _, _ in self.options[r][i]:
                     self.poly[r, i, d] = self._comb(self.poly[r, i, d], lw)
-        self._build()
+        if build:
+            _build_many([self])
 
     def _append_ok(self, rest: np.ndarray, z: int) -> np.ndarray:
         return ((rest & ~self.con.into[z]) == 0) & ((self.req.pred[z] & ~rest) == 0)
 
-    def _build(self) -> None:
-        n = self.n
-        L = 2 * n + 1
-        chain = np.full((1 << n, L), NEG)
-        block = np.full((1 << n, L), NEG)
-        chain[0, 0] = 0.0
-        for r in range(1, n + 1):
-            sets = _levels(n)[r]
-            for z in range(n):
-                has = sets[(sets >> z) & 1 == 1]
-                rest = has ^ (1 << z)
-                ok = self._append_ok(rest, z)
-                src = np.where(ok[:, None], chain[rest], NEG)
-                for target, role in ((chain, 1), (block, 0)):
-                    cand = np.full((has.size, L), NEG)
-                    for d in range(3):
-                        if self.poly[role, z, d] > NEG:
-                            cand[:, d:] = self._comb(cand[:, d:], src[:, :L - d] + self.poly[role, z, d])
-                    target[has] = self._comb(target[has], cand)
-        succ = [sum(1 << z for z in range(n) if self.req.pred[z] >> a & 1) for a in range(n)]
-        all_sets = np.arange(1 << n)
-        closed = np.ones(1 << n, dtype=bool)
-        for a in range(n):
-            closed &= ((all_sets >> a) & 1 == 0) | ((succ[a] & ~all_sets) == 0)
-        block[~closed] = NEG
-        self.chain, self.block = chain, block
-        p = self.prior.p_new_block
-        Lc = n * (n - 1) // 2 + L
-        self.Lc = Lc
-        if p <= 0.0:
-            self.seq = None
+    def _finish(self) -> None:
+        """The extra G clauses and the totals by clause count, from the tables."""
+        n, Lc = self.n, self.Lc
+        if self.seq is None:
             top = np.full(Lc, NEG)
             shift = n * (n - 1) // 2
-            top[shift:shift + L] = block[(1 << n) - 1] - math.lgamma(n + 1)
+            top[shift:shift + 2 * n + 1] = self.block[(1 << n) - 1] - math.lgamma(n + 1)
             self.top, self.top_k = top, np.ones(Lc, dtype=int)
         else:
-            seq = np.full((1 << n, n + 1, Lc), NEG)
-            seq[0, 0, 0] = 0.0
-            for s in range(1, n + 1):  # every S of size s, over its blocks B that hold the lowest member of S
-                sets = _levels(n)[s]
-                level = np.full((sets.size, n + 1, Lc), NEG)
-                for b in range(1, s + 1):
-                    lw = self._block_weight(b)
-                    if lw == NEG:
-                        continue
-                    S_all, B_all, R_all, _ = _pairs(n, s, b)
-                    keep = (B_all & (S_all & -S_all)) != 0
-                    B, R = B_all[keep], R_all[keep]
-                    per = B.size // sets.size
-                    shift = b * (b - 1) // 2
-                    for d in range(2 * b + 1):
-                        v = block[B, d]
-                        if not (v > NEG).any():
-                            continue
-                        off = shift + d
-                        cand = seq[R, :-1, :Lc - off] + (v + lw)[:, None, None]
-                        cand = cand.reshape(sets.size, per, n, Lc - off)
-                        cand = np.logaddexp.reduce(cand, axis=1) if self.summing else cand.max(axis=1)
-                        level[:, 1:, off:] = self._comb(level[:, 1:, off:], cand)
-                seq[sets] = level
-            self.seq = seq
-            ks = np.arange(n + 1)
-            lk = np.array([math.lgamma(k + 1) for k in ks])[:, None]
-            full = seq[(1 << n) - 1] + lk - math.lgamma(n + 1) - math.log(p)
-            self.by_k = full
+            full = self.by_k
             top = np.logaddexp.reduce(full, axis=0) if self.summing else full.max(axis=0)
             self.top, self.top_k = top, full.argmax(axis=0)
         # extras: required ones forbidden, allowed ones optional (lowest index first)
@@ -370,14 +333,152 @@ class _MaxDP:
         return tuple(reversed(order)), g, f
 
 
+def _build_many(dps: Sequence[_MaxDP]) -> None:
+    """Fill the tables of DPs over the same prior and kind (max or sum) at once, one batch axis over them."""
+    first = dps[0]
+    n, M = first.n, len(dps)
+    comb = first._comb
+    L = 2 * n + 1
+    poly = np.stack([dp.poly for dp in dps])  # (M, 2, n, 3)
+    into = np.array([dp.con.into for dp in dps], dtype=np.int64).reshape(M, n)
+    pred = np.array([dp.req.pred for dp in dps], dtype=np.int64).reshape(M, n)
+    chain = np.full((M, 1 << n, L), NEG)
+    block = np.full((M, 1 << n, L), NEG)
+    chain[:, 0, 0] = 0.0
+    for r in range(1, n + 1):
+        sets = _levels(n)[r]
+        for z in range(n):
+            has = sets[(sets >> z) & 1 == 1]
+            rest = has ^ (1 << z)
+            ok = ((rest[None, :] & ~into[:, z][:, None]) == 0) & ((pred[:, z][:, None] & ~rest[None, :]) == 0)
+            src = np.where(ok[:, :, None], chain[:, rest], NEG)
+            for target, role in ((chain, 1), (block, 0)):
+                cand = np.full((M, has.size, L), NEG)
+                for d in range(3):
+                    w = poly[:, role, z, d]
+                    if (w > NEG).any():
+                        cand[:, :, d:] = comb(cand[:, :, d:], src[:, :, :L - d] + w[:, None, None])
+                target[:, has] = comb(target[:, has], cand)
+    all_sets = np.arange(1 << n)
+    closed = np.ones((M, 1 << n), dtype=bool)
+    for a in range(n):
+        succ = ((pred >> a) & 1) * (np.int64(1) << np.arange(n, dtype=np.int64))[None, :]
+        succ_mask = succ.sum(axis=1)
+        closed &= ((all_sets[None, :] >> a) & 1 == 0) | ((succ_mask[:, None] & ~all_sets[None, :]) == 0)
+    block[~closed] = NEG
+    p = first.prior.p_new_block
+    Lc = n * (n - 1) // 2 + L
+    seq_all = None
+    by_k = None
+    if p > 0.0:
+        seq_all = np.full((M, 1 << n, n + 1, Lc), NEG)
+        seq_all[:, 0, 0, 0] = 0.0
+        for s in range(1, n + 1):  # every S of size s, over its blocks B that hold the lowest member of S
+            sets = _levels(n)[s]
+            level = np.full((M, sets.size, n + 1, Lc), NEG)
+            for b in range(1, s + 1):
+                lw = first._block_weight(b)
+                if lw == NEG:
+                    continue
+                S_all, B_all, R_all, _ = _pairs(n, s, b)
+                keep = (B_all & (S_all & -S_all)) != 0
+                B, R = B_all[keep], R_all[keep]
+                per = B.size // sets.size
+                shift = b * (b - 1) // 2
+                for d in range(2 * b + 1):
+                    v = block[:, B, d]
+                    if not (v > NEG).any():
+                        continue
+                    off = shift + d
+                    cand = seq_all[:, R, :-1, :Lc - off] + (v + lw)[:, :, None, None]
+                    cand = cand.reshape(M, sets.size, per, n, Lc - off)
+                    cand = np.logaddexp.reduce(cand, axis=2) if first.summing else cand.max(axis=2)
+                    level[:, :, 1:, off:] = comb(level[:, :, 1:, off:], cand)
+            seq_all[:, sets] = level
+        lk = np.array([math.lgamma(k + 1) for k in range(n + 1)])[:, None]
+        by_k = seq_all[:, (1 << n) - 1] + lk - math.lgamma(n + 1) - math.log(p)
+    for i, dp in enumerate(dps):
+        dp.chain, dp.block, dp.Lc = chain[i], block[i], Lc
+        dp.seq = None if seq_all is None else seq_all[i]
+        if by_k is not None:
+            dp.by_k = by_k[i]
+        dp._finish()
+
+
 @dataclass(frozen=True)
 class MapResult:
-    """The MAP formula, its log posterior probability, and the number of max-product DPs the search ran."""
+    """The MAP formula, its log posterior probability, and the number of max-product DPs the search used
+    (built, or found memoised from an earlier search)."""
 
     formula: Formula
     log_probability: float
     text: str
     dps: int
+
+
+@dataclass(frozen=True)
+class _Node:
+    """A node of the MAP search: its bound, the clause count attaining it, each datum's status (1 satisfied,
+    0 violated, -1 unknown) and the DP's best log prior weight by clause count."""
+
+    con: Constraint
+    req: Required
+    bound: float
+    n_best: int
+    status: tuple[int, ...]
+    totals: np.ndarray
+
+
+@dataclass
+class _Memo:
+    """What the MAP search keeps of one max-product DP: its totals, the maximisers asked for so far, and the
+    tables while a maximiser is being walked back."""
+
+    total: np.ndarray
+    formulas: dict[int, Formula]
+    dp: _MaxDP | None
+
+
+# The max-product DP is a function of (prior, constraint, required set) alone, and successive beliefs of one
+# teaching session split on the same data: their searches ask for the same few dozen DPs again and again.
+MEMO_SIZE = 4096
+_MEMO: OrderedDict[tuple[ChainPrior, Constraint, Required], _Memo] = OrderedDict()
+
+
+def clear_memo() -> None:
+    """Forget every memoised max-product DP (benchmarks time cold searches)."""
+    _MEMO.clear()
+
+
+def _memos(prior: ChainPrior, pairs: Sequence[tuple[Constraint, Required]]) -> list[_Memo]:
+    """The memo of each pair's DP, the missing ones built together (their totals kept, not their tables)."""
+    keys = [(prior, con, req) for con, req in pairs]
+    missing = list(dict.fromkeys(k for k in keys if k not in _MEMO))
+    dps = [_MaxDP(prior, con, req, build=False) for _, con, req in missing]
+    n = prior.vocabulary.n
+    step = max(1, (16 << 20) // ((1 << n) * (n + 2) * (prior.degree + 1) * 8))  # its temporaries are ~10x
+    for start in range(0, len(dps), step):
+        _build_many(dps[start:start + step])
+    for key, dp in zip(missing, dps, strict=True):
+        _MEMO[key] = _Memo(dp.total, {}, None)  # tables are megabytes: a maximiser rebuilds its DP if asked
+    out = []
+    for key in keys:
+        _MEMO.move_to_end(key)
+        out.append(_MEMO[key])
+    while len(_MEMO) > MEMO_SIZE:
+        _MEMO.popitem(last=False)
+    return out
+
+
+def _maximiser(prior: ChainPrior, con: Constraint, req: Required, N: int) -> Formula:
+    """A formula of N clauses attaining the DP's total (the first in its fixed order), memoised."""
+    memo = _memos(prior, [(con, req)])[0]
+    if N not in memo.formulas:
+        if memo.dp is None:
+            memo.dp = _MaxDP(prior, con, req)
+        memo.formulas[N] = memo.dp.formula(N)
+        memo.dp = None
+    return memo.formulas[N]
 
 
 def _log_factor(d: Datum, sat: bool, N: np.ndarray, log_eps: float) -> np.ndarray:
@@ -396,30 +497,48 @@ def map_formula(posterior: ExactPosterior, max_dps: int = 10_000) -> MapResult:
     N = np.arange(prior.degree + 1, dtype=float)
     runs = 0
 
-    def make(con: Constraint, req: Required) -> tuple[float, int, Formula, tuple[int, ...]] | None:
+    def make(pairs: Sequence[tuple[Constraint, Required]]) -> list[_Node | None]:
+        """The nodes of these (constraint, required) pairs (None: no formula)."""
         nonlocal runs
-        if not req.within(con):
-            return None
-        runs += 1
-        dp = _MaxDP(prior, con, req)
-        status = []
-        bound = dp.total.copy()
-        for d in data:
-            if not req.within(d.satisfied):
-                s = 0  # violated
-            elif _within(con, d.satisfied):
-                s = 1  # satisfied
-            else:
-                s = -1
-            status.append(s)
+        live = [k for k, (con, req) in enumerate(pairs) if req.within(con)]
+        runs += len(live)
+        memos = _memos(prior, [pairs[k] for k in live])
+        out: list[_Node | None] = [None] * len(pairs)
+        for k, memo in zip(live, memos, strict=True):
+            con, req = pairs[k]
+            status = []
+            bound = memo.total.copy()
+            for d in data:
+                if not req.within(d.satisfied):
+                    s = 0  # violated
+                elif _within(con, d.satisfied):
+                    s = 1  # satisfied
+                else:
+                    s = -1
+                status.append(s)
+                if s >= 0:
+                    bound = bound + _log_factor(d, bool(s), N, log_eps)
+                else:
+                    bound = bound + np.maximum(_log_factor(d, True, N, log_eps), _log_factor(d, False, N, log_eps))
+            if np.isfinite(bound.max()):
+                best_n = int(bound.argmax())
+                out[k] = _Node(con, req, float(bound[best_n]), best_n, tuple(status), memo.total)
+        return out
+
+    def split_bounds(node: _Node, split: int) -> tuple[float, float]:
+        """Upper bounds of the children that satisfy / violate the split datum, from the parent's DP (a child's
+        formulas are some of the parent's, and its data statuses are at least as settled)."""
+        base = node.totals.copy()
+        for i, (d, s) in enumerate(zip(data, node.status, strict=True)):
+            if i == split:
+                continue
             if s >= 0:
-                bound = bound + _log_factor(d, bool(s), N, log_eps)
+                base = base + _log_factor(d, bool(s), N, log_eps)
             else:
-                bound = bound + np.maximum(_log_factor(d, True, N, log_eps), _log_factor(d, False, N, log_eps))
-        if not np.isfinite(bound.max()):
-            return None
-        best_n = int(bound.argmax())
-        return float(bound[best_n]), best_n, dp.formula(best_n), tuple(status)
+                base = base + np.maximum(_log_factor(d, True, N, log_eps), _log_factor(d, False, N, log_eps))
+        d = data[split]
+        sat, violated = (float((base + _log_factor(d, ok, N, log_eps)).max()) for ok in (True, False))
+        return sat, violated
 
     def score(h: Formula) -> float:
         n_c = np.array([float(h.n_clauses)])
@@ -428,14 +547,17 @@ def map_formula(posterior: ExactPosterior, max_dps: int = 10_000) -> MapResult:
             out += float(_log_factor(d, h.within(d.satisfied), n_c, log_eps)[0])
         return out
 
-    root = make(voc.everything(), Required.none(voc.n))
+    root = make([(voc.everything(), Required.none(voc.n))])[0]
     assert root is not None, "the prior has no formula"
-    heap: list[tuple[float, int, Constraint, Required, tuple[float, int, Formula, tuple[int, ...]]]] = []
+    heap: list[tuple[float, int, Constraint, Required, _Node]] = []
     counter = 0
-    heap.append((-root[0], counter, voc.everything(), Required.none(voc.n), root))
-    incumbent, inc_score = root[2], score(root[2])
+    heap.append((-root.bound, counter, voc.everything(), Required.none(voc.n), root))
+    incumbent = _maximiser(prior, root.con, root.req, root.n_best)
+    inc_score = score(incumbent)
     while heap and runs < max_dps:
-        neg_bound, _, con, req, (bound, n_best, h, status) = heapq.heappop(heap)
+        neg_bound, _, con, req, node = heapq.heappop(heap)
+        bound, n_best, status = node.bound, node.n_best, node.status
+        h = _maximiser(prior, con, req, n_best)
         if bound <= inc_score + TOLERANCE:
             break
         s_h = score(h)
@@ -449,12 +571,14 @@ def map_formula(posterior: ExactPosterior, max_dps: int = 10_000) -> MapResult:
             _log_factor(d, h.within(d.satisfied), nb, log_eps)[0]
             < max(_log_factor(d, True, nb, log_eps)[0], _log_factor(d, False, nb, log_eps)[0])))
         sd = data[split].satisfied
-        children = [(con.meet(sd), req), *_outside(con, sd, req, voc.n)]
-        for c_con, c_req in children:
-            child = make(c_con, c_req)
-            if child is not None and child[0] > inc_score + TOLERANCE:
+        if_sat, if_violated = split_bounds(node, split)
+        children = [(con.meet(sd), req)] if if_sat > inc_score + TOLERANCE else []
+        if if_violated > inc_score + TOLERANCE:
+            children += _outside(con, sd, req, voc.n)
+        for (c_con, c_req), child in zip(children, make(children), strict=True):
+            if child is not None and child.bound > inc_score + TOLERANCE:
                 counter += 1
-                heapq.heappush(heap, (-child[0], counter, c_con, c_req, child))
+                heapq.heappush(heap, (-child.bound, counter, c_con, c_req, child))
     else:
         if heap and runs >= max_dps:
             raise RuntimeError(f"MAP search stopped after {runs} max-product DPs without a proof; raise max_dps")

@@ -2,7 +2,7 @@
 
 A formula's likelihood depends only on its clause count N and on which data it satisfies (its
 satisfaction pattern v). The prior mass with N clauses of the formulas that satisfy every datum in U
-is a hard-constraint partition function Z_U[N] (``chains.prior_mass_by_count``); the mass of those
+is a hard-constraint partition function Z_U[N] (``mass.prior_mass``); the mass of those
 satisfying exactly the data v follows by Moebius inversion over supersets of v, and the evidence is
 sum over v and N of that mass times the likelihood f(N, v), summed in log space.
 
@@ -15,13 +15,16 @@ ones): ``exact_terms`` says which was done and ``dropped_bound`` the bound.
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
 
-from .chains import ChainPrior, prior_mass_by_blocks, prior_mass_by_count
+from .batch import Batch
+from .chains import ChainPrior
 from .constraints import Constraint
+from .mass import prior_mass
 
 LN2 = math.log(2.0)
 DROP_TOLERANCE = 1e-16
@@ -33,6 +36,13 @@ class Datum:
 
     satisfied: Constraint
     acceptable: bool
+
+
+@lru_cache(maxsize=32)
+def unconstrained_mass(prior: ChainPrior) -> np.ndarray:
+    """The prior's mass by clause count (a property of the prior, computed once per prior)."""
+    voc = prior.vocabulary
+    return prior_mass(prior, Batch.of([voc.everything()], voc.n))[0]
 
 
 def _moebius(values: np.ndarray, n_bits: int) -> np.ndarray:
@@ -71,6 +81,7 @@ class ExactPosterior:
         self.exact_terms = not pos or bound > 0.0 and math.log(bound) > math.log(DROP_TOLERANCE) + log_z
         if self.exact_terms and pos:
             self._fixed, self._bits = 0, list(range(len(self.data)))
+            self.__dict__.pop("_patterns_cache", None)
             log_f = self._log_likelihood(length)
             masses = self._masses(None)
             log_z = self._log_sum(masses, log_f)
@@ -93,26 +104,39 @@ class ExactPosterior:
         return out
 
     def _constraints(self, extra: Constraint | None) -> list[Constraint]:
-        out = []
-        base = self.prior.vocabulary.everything() if extra is None else extra
-        for mask in self._patterns():
-            c = base
-            for i, d in enumerate(self.data):
-                if mask >> i & 1:
-                    c = c.meet(d.satisfied)
-            out.append(c)
-        return out
+        """For every pattern (a subset of the free data), the meet of its data (and of extra)."""
+        rows = self._pattern_batch()
+        if extra is not None:
+            rows = rows.meet(Batch.of([extra], self.prior.vocabulary.n))
+        return [rows.row(t) for t in range(len(rows))]
+
+    def _pattern_batch(self) -> Batch:
+        """The meet of each pattern's data, one row per pattern (indexed by subsets of the free bits)."""
+        cached = self.__dict__.get("_patterns_cache")
+        if cached is not None:
+            return cached
+        voc = self.prior.vocabulary
+        rows = Batch.of([voc.everything()], voc.n)
+        fixed = [d for i, d in enumerate(self.data) if self._fixed >> i & 1]
+        if fixed:
+            rows = rows.meet(Batch.of([d.satisfied for d in fixed], voc.n).reduce())
+        for i in self._bits:
+            one = Batch.of([voc.everything(), self.data[i].satisfied], voc.n)
+            rows = one.outer_meet(rows)  # the new bit is the highest
+        self.__dict__["_patterns_cache"] = rows
+        return rows
 
     def _masses(self, extra: Constraint | None) -> np.ndarray:
-        return self._masses_many([extra])[0]
+        return self._masses_many(None if extra is None else Batch.of([extra], self.prior.vocabulary.n))[0]
 
-    def _masses_many(self, extras: Sequence[Constraint | None]) -> np.ndarray:
-        """E[c, v, N]: prior mass satisfying exactly pattern v (within constraint c), by clause count."""
-        cons = [c for e in extras for c in self._constraints(e)]
-        z = prior_mass_by_count(self.prior, cons)
-        per = 1 << len(self._bits)
-        z = z.reshape(len(extras), per, -1).transpose(1, 0, 2)
-        return _moebius(z, len(self._bits)).transpose(1, 0, 2)
+    def _masses_many(self, extras: Batch | None, by_blocks: bool = False) -> np.ndarray:
+        """E[c, v, (k,) N]: prior mass satisfying exactly pattern v (within constraint c), by clause count."""
+        patterns = self._pattern_batch()
+        cons = patterns if extras is None else extras.outer_meet(patterns)
+        per = len(patterns)
+        z = prior_mass(self.prior, cons, by_blocks)
+        z = z.reshape(len(cons) // per, per, *z.shape[1:])
+        return np.moveaxis(_moebius(np.moveaxis(z, 1, 0), len(self._bits)), 0, 1)
 
     def _log_likelihood(self, length: int) -> np.ndarray:
         """log f(N, v) for every pattern v over the free bits and N = 0..length-1."""
@@ -143,7 +167,7 @@ class ExactPosterior:
         """Upper bound on the evidence terms in which some acceptable execution is violated."""
         if k == 0:
             return 0.0
-        p0 = prior_mass_by_count(self.prior, [self.prior.vocabulary.everything()])[0]
+        p0 = unconstrained_mass(self.prior)
         n = np.arange(length, dtype=float)
         terms = []
         with np.errstate(divide="ignore"):
@@ -157,11 +181,12 @@ class ExactPosterior:
 
     # ------------------------------------------------------------ queries of the posterior
 
-    def p_within(self, constraints: Sequence[Constraint]) -> np.ndarray:
+    def p_within(self, constraints: Sequence[Constraint] | Batch) -> np.ndarray:
         """For each constraint C: the posterior probability that the formula's clauses all lie in C."""
-        if not constraints:
+        if len(constraints) == 0:
             return np.zeros(0)
-        masses = self._masses_many(list(constraints))
+        batch = constraints if isinstance(constraints, Batch) else Batch.of(list(constraints), self.prior.vocabulary.n)
+        masses = self._masses_many(batch)
         with np.errstate(divide="ignore"):
             terms = np.log(np.clip(masses, 0.0, None)) + self._log_f[None]
         flat = terms.reshape(terms.shape[0], -1)
@@ -191,9 +216,7 @@ class ExactPosterior:
 
     def _joint(self) -> np.ndarray:
         """Posterior mass over (satisfaction pattern, block count, clause count)."""
-        cons = self._constraints(None)
-        z = prior_mass_by_blocks(self.prior, cons)
-        masses = np.clip(_moebius(z, len(self._bits)), 0.0, None)
+        masses = np.clip(self._masses_many(None, by_blocks=True)[0], 0.0, None)
         with np.errstate(divide="ignore", invalid="ignore"):
             return masses * np.exp(self._log_f - self.log_evidence)[:, None, :]
 
@@ -218,11 +241,12 @@ class ExactPosterior:
             e_log_prior += float(p_k @ np.array([math.lgamma(j + 1) for j in k]))
         elif p >= 1.0:
             e_log_prior += math.lgamma(n + 1)  # all singletons: n!/n! whatever the order
-        marg = self.marginals("GF")
         for kind, q, count in (("G", prior.p_forbid, len(voc.forbiddable)), ("F", prior.p_eventually, n)):
-            expected = sum(v for key, v in marg.items() if key[0] == kind)
             if count and 0.0 < q < 1.0:
-                e_log_prior += count * math.log(1 - q) + expected * math.log(q / (1 - q))
+                e_log_prior += count * math.log(1 - q)
+                if q != 0.5:  # the clause counts' expectations only matter when a clause changes the weight
+                    expected = sum(self.marginals(kind).values())
+                    e_log_prior += expected * math.log(q / (1 - q))
         return float(self.log_evidence - e_log_prior - e_log_f)
 
     def observe(self, datum: Datum) -> "ExactPosterior":

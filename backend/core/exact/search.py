@@ -5,8 +5,11 @@ that, so a prefix bounds every extension of it: an extension is accepted by at m
 the prefix has not yet violated (``upper``), and by at least those it has already satisfied for
 good (``lower``: its F items and its orders whose antecedent occurred, no G clause). Both bounds
 and the scores are exact posterior probabilities. The min-regret plan maximises P(acceptable);
-the active query minimises |2 P(acceptable) - 1|. With ``max_expansions`` large enough the search
-is exhaustive where the bounds do not prune, so its result is the proven optimum
+the active query minimises |2 P(acceptable) - 1|. Only one execution of each set that provably
+scores the same is visited (``moves.py``). When the moves keep at most ``EXHAUSTIVE_ACTIVE``
+executions, the active query scores all of them in one batch (proven; ties: the first, shortest
+and in proposition order); past that it searches. With ``max_expansions`` large enough the search is
+exhaustive where the bounds do not prune, so its result is the proven optimum
 (``SearchResult.proven``); otherwise it is the best execution found. Prefixes are expanded
 ``batch_size`` at a time (lowest bound first, then ``_priority``), their children scored in one
 batched DP. The active query starts from the best of ``dives`` seeded random walks (every child on
@@ -22,13 +25,17 @@ from typing import Sequence
 
 import numpy as np
 
+from .batch import Batch, of_events
 from .constraints import Constraint, Vocabulary
+from .moves import Moves, lower
 from .posterior import ExactPosterior
 
 TOLERANCE = 1e-12
 OBJECTIVES = ("min-regret", "active")
 # The active query's bounds rarely prune (most prefixes can still end either way), so it gets a budget.
 DEFAULT_EXPANSIONS = {"min-regret": 2_000, "active": 64}
+# Up to this many executions kept by the moves, the active query scores them all (one batch) and is proven.
+EXHAUSTIVE_ACTIVE = 5_000
 
 
 @dataclass(frozen=True)
@@ -63,6 +70,33 @@ def lower_constraint(voc: Vocabulary, events: Sequence[str]) -> Constraint:
     return Constraint(0, sat.f_ok, sat.into, 0)
 
 
+@dataclass(frozen=True)
+class _Node:
+    """A prefix: proposition indices, the used ones as a mask, its satisfied and not-yet-violated clauses."""
+
+    events: tuple[int, ...]
+    used: int
+    exact: Batch
+    upper: Batch
+
+
+def _children(moves: Moves, nodes: Sequence[_Node]) -> list[_Node]:
+    """Every allowed one-proposition extension of the nodes, in order."""
+    parents, props = [], []
+    for k, node in enumerate(nodes):
+        for z in moves.children(node.events, node.used):
+            parents.append(k)
+            props.append(z)
+    if not props:
+        return []
+    index = np.array(parents)
+    exact = Batch.concat([node.exact for node in nodes]).take(index)
+    upper = Batch.concat([node.upper for node in nodes]).take(index)
+    child, bound = moves.extend(exact, upper, np.array(props))
+    return [_Node(nodes[k].events + (z,), nodes[k].used | 1 << z, child.take(np.array([c])), bound.take(np.array([c])))
+            for c, (k, z) in enumerate(zip(parents, props, strict=True))]
+
+
 def best_execution(
     posterior: ExactPosterior,
     propositions: Sequence[str],
@@ -78,44 +112,64 @@ def best_execution(
     if max_expansions is None:
         max_expansions = DEFAULT_EXPANSIONS[objective]
     voc = posterior.prior.vocabulary
-    root_p = posterior.p_acceptable(voc.of_events(()))
-    best: tuple[tuple[str, ...], float, float] = ((), root_p, _score(objective, root_p))
+    moves = Moves.of(posterior, propositions)
+    n = voc.n
+    if objective == "active" and max_expansions > 0:
+        every = _kept_executions(moves, EXHAUSTIVE_ACTIVE)
+        if every is not None:
+            probs = posterior.p_within(of_events(voc, [tuple(moves.names[i] for i in e) for e in every]))
+            k = int(np.argmin(np.abs(2.0 * probs - 1.0)))  # the first of the ties, in the walk's order
+            return SearchResult(tuple(moves.names[i] for i in every[k]), float(probs[k]), len(every), True)
+    root = _Node((), 0, Batch.of([voc.of_events(())], n), Batch.of([voc.everything()], n))
+    root_p, lo, hi = posterior.p_within(Batch.concat([root.exact, lower(root.exact), root.upper]))
+    best: tuple[tuple[int, ...], float, float] = ((), float(root_p), _score(objective, float(root_p)))
     if objective == "active" and dives > 0:  # ties are many: random dives find a strong incumbent fast
-        best = min(best, _random_dives(posterior, propositions, dives, np.random.default_rng(seed)),
+        best = min(best, _random_dives(posterior, moves, root, dives, np.random.default_rng(seed)),
                    key=lambda item: item[2])
-    lo, hi = posterior.p_within([lower_constraint(voc, ()), upper_constraint(voc, ())])
-    frontier: list[tuple[float, float, int, tuple[str, ...]]] = [(_bound(objective, lo, hi), best[2], 0, ())]
+    frontier: list[tuple[float, float, int, _Node]] = [(_bound(objective, float(lo), float(hi)), best[2], 0, root)]
     expanded = 0
     counter = 0
     perfect = -1.0 if objective == "min-regret" else 0.0  # nothing scores better than this
     while frontier and expanded < max_expansions and best[2] > perfect + TOLERANCE:
-        batch: list[tuple[str, ...]] = []
+        batch: list[_Node] = []
         while frontier and len(batch) < batch_size and expanded + len(batch) < max_expansions:
-            bound, _, _, events = heapq.heappop(frontier)
+            bound, _, _, node = heapq.heappop(frontier)
             if bound < best[2] - TOLERANCE:
-                batch.append(events)
+                batch.append(node)
         expanded += len(batch)
-        children = [events + (p,) for events in batch for p in propositions if p not in events]
+        children = _children(moves, batch)
         if not children:
             continue
-        cons = []
-        for child in children:
-            lower = [lower_constraint(voc, child)] if objective == "active" else []
-            cons += [voc.of_events(child), *lower, upper_constraint(voc, child)]
-        probs = posterior.p_within(cons).reshape(len(children), -1)
+        exact = Batch.concat([c.exact for c in children])
+        upper = Batch.concat([c.upper for c in children])
+        parts = [exact, lower(exact), upper] if objective == "active" else [exact, upper]
+        probs = posterior.p_within(Batch.concat(parts)).reshape(len(parts), len(children)).T
         if objective == "min-regret":  # the lower bound does not prune a maximisation
             probs = np.concatenate([probs[:, :1], probs[:, 1:], probs[:, 1:]], axis=1)
         for child, p in zip(children, probs[:, 0], strict=True):
             score = _score(objective, float(p))
             if score < best[2] - TOLERANCE:
-                best = (child, float(p), score)
+                best = (child.events, float(p), score)
         for child, (p, lo, hi) in zip(children, probs, strict=True):
             child_bound = _bound(objective, float(lo), float(hi))
-            if child_bound < best[2] - TOLERANCE and len(child) < len(propositions):
+            if child_bound < best[2] - TOLERANCE and len(child.events) < len(moves.names):
                 counter += 1
-                heapq.heappush(frontier, (child_bound, _priority(objective, float(p), len(child)), counter, child))
+                heapq.heappush(frontier, (child_bound, _priority(objective, float(p), len(child.events)), counter,
+                                          child))
     proven = best[2] <= perfect + TOLERANCE or not any(b < best[2] - TOLERANCE for b, _, _, _ in frontier)
-    return SearchResult(best[0], best[1], expanded, proven)
+    return SearchResult(tuple(moves.names[i] for i in best[0]), best[1], expanded, proven)
+
+
+def _kept_executions(moves: Moves, cap: int) -> list[tuple[int, ...]] | None:
+    """Every execution the moves keep, shortest first and in proposition order; None if there are more than cap."""
+    level: list[tuple[tuple[int, ...], int]] = [((), 0)]
+    out: list[tuple[int, ...]] = []
+    while level:
+        out += [events for events, _ in level]
+        if len(out) > cap:
+            return None
+        level = [(events + (z,), used | 1 << z) for events, used in level for z in moves.children(events, used)]
+    return out
 
 
 def _score(objective: str, p: float) -> float:
@@ -141,26 +195,24 @@ def _priority(objective: str, p: float, depth: int) -> float:
 
 
 def _random_dives(
-    posterior: ExactPosterior, propositions: Sequence[str], dives: int, rng: np.random.Generator
-) -> tuple[tuple[str, ...], float, float]:
+    posterior: ExactPosterior, moves: Moves, root: _Node, dives: int, rng: np.random.Generator
+) -> tuple[tuple[int, ...], float, float]:
     """The most uncertain execution seen on ``dives`` uniformly random walks from the empty execution,
     every child along the way scored (one batched DP per depth)."""
-    voc = posterior.prior.vocabulary
-    best: tuple[tuple[str, ...], float, float] = ((), 0.0, 2.0)
-    paths: list[tuple[str, ...]] = [() for _ in range(dives)]
+    best: tuple[tuple[int, ...], float, float] = ((), 0.0, 2.0)
+    paths = [root] * dives
     while paths:
-        children = [path + (p,) for path in paths for p in propositions if p not in path]
+        children = _children(moves, paths)
         if not children:
             break
-        probs = posterior.p_within([voc.of_events(child) for child in children])
+        probs = posterior.p_within(Batch.concat([c.exact for c in children]))
         for child, p in zip(children, probs, strict=True):
             if abs(2.0 * p - 1.0) < best[2] - TOLERANCE:
-                best = (child, float(p), abs(2.0 * float(p) - 1.0))
-        walks, start = [], 0
+                best = (child.events, float(p), abs(2.0 * float(p) - 1.0))
+        walks = []
         for path in paths:
-            k = len(propositions) - len(path)
-            if k > 1:
-                walks.append(children[start + int(rng.integers(k))])
-            start += k
+            mine = [c for c in children if c.events[:-1] == path.events]
+            if mine and len(path.events) + 1 < len(moves.names):
+                walks.append(mine[int(rng.integers(len(mine)))])
         paths = walks
     return best

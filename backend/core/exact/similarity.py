@@ -5,7 +5,7 @@ formula's other tokens (the authors' token sets, see ``metrics.py``; 1 when both
 i / (r + t) = integral over u in [0, 1] of i u^(r + t - 1), the expectation is the integral of
 u^(t - 1) d/dy Z(u, y) at y = 1, where Z weights every formula's posterior probability by u per
 token outside the truth and y per shared token. Z is a chains DP with token weights
-(``chains.prior_mass_with_tokens``) and the data's inclusion-exclusion as in ``posterior.py``; the
+(``mass.prior_mass`` with token weights) and the data's inclusion-exclusion as in ``posterior.py``; the
 derivative is a complex step (y = 1 + i h, exact to rounding for a polynomial), and the integrand is a
 polynomial in u of degree below the number of possible tokens plus t, which Gauss-Legendre with
 enough nodes integrates exactly. Only the "authors" metric is offered.
@@ -18,12 +18,13 @@ from typing import Iterable
 import numpy as np
 
 from ..clauses import Clause
-from .chains import TokenWeights, prior_mass_with_tokens
+from .chains import TokenWeights
+from .mass import prior_mass
 from .constraints import Vocabulary
 from .posterior import ExactPosterior, _moebius
 
 STEP = 1e-20
-CHUNK = 64
+CHUNK = 512  # constraint rows per call (prior_mass splits them further by memory)
 
 
 def truth_tokens(clauses: Iterable[Clause]) -> set[tuple[str, ...]]:
@@ -57,6 +58,21 @@ def _weights(voc: Vocabulary, tokens: set[tuple[str, ...]], u: np.ndarray, y: co
     return TokenWeights(g, f, pair, g_extra)
 
 
+def _most_tokens(posterior: ExactPosterior) -> int:
+    """A bound on the tokens of any formula the posterior gives weight: every one lies within its weakest
+    data pattern (G and item tokens it allows, and no more orders than its chains inside the objects
+    that may come first, plus a tail each, can hold)."""
+    voc = posterior.prior.vocabulary
+    n = voc.n
+    weakest = posterior._pattern_batch().take(np.array([0]))
+    first = int(np.bitwise_or.reduce(weakest.into[0])) if n else 0
+    n_first = bin(first).count("1")
+    g = bin(int(weakest.g_ok[0]) & voc.forbiddable_orderable).count("1") + bin(int(weakest.g_extra[0])).count("1")
+    items = bin(int(weakest.f_ok[0]) | first).count("1")
+    orders = min(n * (n - 1) // 2, (n_first + 1) * n_first // 2, sum(bin(int(v)).count("1") for v in weakest.into[0]))
+    return g + items + orders
+
+
 def expected_similarity(posterior: ExactPosterior, truth: Iterable[Clause], metric: str = "authors") -> float:
     """E_P[L(phi, truth)] under the exact posterior, for a truth given as its clauses."""
     if metric != "authors":
@@ -69,20 +85,19 @@ def expected_similarity(posterior: ExactPosterior, truth: Iterable[Clause], metr
         raise ValueError(f"the ground truth names {', '.join(unknown)}, which are not propositions of this task")
     tokens = truth_tokens(truth)
     t = len(tokens)
-    n = voc.n
-    most = len(voc.forbiddable) + n + n * (n - 1) // 2  # tokens a formula can have
+    most = _most_tokens(posterior)
     if t == 0:
         nodes, weights, power = np.zeros(1), np.ones(1), 0
     else:
         x, w = np.polynomial.legendre.leggauss((most + t) // 2 + 1)
         nodes, weights, power = (x + 1) / 2, w / 2, t - 1
-    cons = posterior._constraints(None)
-    per = len(cons)
+    patterns = posterior._pattern_batch()
+    per = len(patterns)
     values = []
     for start in range(0, nodes.size, max(1, CHUNK // per)):
         u = nodes[start:start + max(1, CHUNK // per)]
         tw = _weights(voc, tokens, np.repeat(u, per), complex(1.0, STEP))
-        z = prior_mass_with_tokens(posterior.prior, cons * u.size, tw)
+        z = prior_mass(posterior.prior, patterns.take(np.tile(np.arange(per), u.size)), tokens=tw)
         z = z.reshape(u.size, per, -1).transpose(1, 0, 2)
         masses = _moebius(z, len(posterior._bits)).transpose(1, 0, 2)  # (nodes, patterns, N)
         with np.errstate(divide="ignore", invalid="ignore"):
