@@ -171,7 +171,10 @@ def _tokenize(text: str) -> list[tuple[str, int]]:
     return tokens
 
 
-MAX_DEPTH = 100  # nested operators and parentheses; template formulas nest 3-4 deep, a study's rarely beyond 10
+MAX_DEPTH = 100  # nested operators; template formulas nest 3-4 deep, a study's rarely beyond 10
+# Operators and parentheses open at once while parsing: a formula within MAX_DEPTH written out by to_text opens at
+# most a parenthesis and an operator per level, so its own text always parses again.
+MAX_PENDING = 2 * MAX_DEPTH + 2
 
 _UNARY = {"!": Not, "X": Next, "WX": WeakNext, "F": Eventually, "G": Always}
 # Binary operators: binding strength and whether a chain of them nests to the right (else it is one n-ary node).
@@ -179,13 +182,13 @@ _BINARY = {"->": (1, True), "|": (2, False), "&": (3, False), "U": (4, True), "R
 
 
 class FormulaTooDeepError(ParseError):
-    """A formula nests more than MAX_DEPTH operators or parentheses (refused by policy, not by Python's stack)."""
+    """A formula nests more than MAX_DEPTH operators, or its text opens more than MAX_PENDING operators and
+    parentheses at once (refused by policy, not by Python's stack)."""
 
     def __init__(self, text: str, position: int) -> None:
-        super().__init__(text, position, f"at most {MAX_DEPTH} nested operators and parentheses",
-                         "a formula nested deeper")
+        super().__init__(text, position, f"at most {MAX_DEPTH} nested operators", "a formula nested deeper")
         self.args = (f"at position {position}: formula nested too deeply; expected at most {MAX_DEPTH} nested "
-                     "operators and parentheses",)
+                     f"operators (and {MAX_PENDING} open operators and parentheses)",)
 
 
 @dataclass
@@ -247,7 +250,7 @@ class _Parser:
             while i < n and (self.tokens[i][0] in _UNARY or self.tokens[i][0] == "("):
                 token, position = self.tokens[i]
                 self.operators.append(_Pending(token, position, 1))
-                if len(self.operators) > MAX_DEPTH:
+                if len(self.operators) > MAX_PENDING:
                     raise FormulaTooDeepError(self.text, position)
                 i += 1
             token = self.tokens[i][0] if i < n else None
@@ -295,7 +298,7 @@ class _Parser:
                 top.arity += 1  # a & b & c is one conjunction of three
             else:
                 self.operators.append(_Pending(token, self.tokens[i][1], 2))
-                if len(self.operators) > MAX_DEPTH:
+                if len(self.operators) > MAX_PENDING:
                     raise FormulaTooDeepError(self.text, self.tokens[i][1])
             i += 1
 
