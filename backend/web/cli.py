@@ -10,8 +10,6 @@ from typing import Any
 from ..config import Settings
 from ..core.teachers import DEFAULT_DEMO_MODE, DEMO_MODES
 
-GIL_SWITCH_SECONDS = 0.0005  # sys.setswitchinterval for `serve` (CPython's default is 0.005; see cmd_serve)
-
 
 def _settings(args: argparse.Namespace) -> Settings:
     overrides: dict[str, Any] = {}
@@ -42,10 +40,6 @@ def cmd_serve(args: argparse.Namespace) -> None:
 
     settings = _settings(args)
     open_files, _hard = raise_open_files_limit()  # every held connection and event stream is a file descriptor
-    # A thread that wants the GIL back (a request after each SQLite call, the event loop) waits up to the switch
-    # interval while another runs Python (the robot's physics loop): at CPython's 5 ms, 50 people placing objects
-    # queued requests behind the write lock and /healthz's p99 reached 3.5 s; at 0.5 ms it was 77 ms.
-    sys.setswitchinterval(GIL_SWITCH_SECONDS)
     experimenter_checker(settings)  # refuses a missing or weak experimenter secret before touching the database
     if args.migrate or args.demo:
         upgrade_head(settings.database_url)
