@@ -64,7 +64,7 @@ let refreshRobot = false; // the next read also asks for the robot's activity (a
 let lastRefreshed = 0;
 // How much of the robot's attempt the 3D view has played (per step: task, kind, index): the answer waits for it.
 let idleReadAt = Date.now(); // when state.idle was read
-let shown = { step: null, playing: false, fraction: null, complete: true, read: false, unreadSince: null,
+let shown = { step: null, playing: false, timed: false, fraction: null, complete: true, read: false, unreadSince: null,
   retried: false };
 // 3D or 2D (participant-view-mode.js); the 2D view's picture and player, and what it shows now.
 const probe = mode.probeWebgl();
@@ -491,8 +491,8 @@ function playerReading() {
 
 /** A fresh record of how much of this step's attempt was shown. */
 function shownRecord(step, playing, motion) {
-  return { step, playing, fraction: playing && motion > 0 ? 0 : null, complete: !playing || motion <= 0,
-    read: false, unreadSince: null, retried: false };
+  return { step, playing, timed: motion > 0, fraction: playing && motion > 0 ? 0 : null,
+    complete: !playing || motion <= 0, read: false, unreadSince: null, retried: false };
 }
 
 /** Follow how much of the robot's attempt has been shown; the answer buttons unlock once it has played to the end.
@@ -508,7 +508,9 @@ function watchPlayback() {
   const motion = Number(ex.motion_seconds) || 0;
   // The 2D player plays the recording over the stored motion length; the 3D one plays it from a file.
   const playing = view.mode === "2d" || (Boolean(viewer.url?.includes("playbackPath=")) && viewer.available !== false);
-  if (shown.step !== step || (playing && !shown.playing)) {
+  // A record started before there was anything to play (the live view, or the 2D view before the plan arrived)
+  // starts again once there is: otherwise the answer would unlock before the attempt had been shown.
+  if (shown.step !== step || (playing && !shown.playing) || (motion > 0 && !shown.timed)) {
     shown = shownRecord(step, playing, motion);
   }
   if (shown.complete && shown.fraction === 1) return;

@@ -83,6 +83,12 @@ def _until(condition: Any, what: str) -> None:
         time.sleep(0.02)
 
 
+def _pending(ctx: Any, kind: str) -> list[str]:
+    """The stored jobs of one kind that are not done."""
+    with ctx.db.read() as s:
+        return [j.kind for j in job_rows.pending_jobs(s) if j.kind == kind]
+
+
 def _finished(client: Any, token: str) -> dict[str, Any]:
     state: dict[str, Any] = {}
 
@@ -147,8 +153,8 @@ def test_a_job_whose_process_died_is_taken_over_once_its_lease_runs_out(slow_cli
     try:
         _until(lambda: _stored_execution(slow_client, token)["plan"] is not None,
                "the second process did not take the execution over")
+        # the job's end is recorded in its own transaction just after the plan's: wait for it, then check once
+        _until(lambda: not _pending(ctx, WORK_OUT), "the taken-over job was never recorded as done")
         assert other_robot.worked == [f"participant-{_uid(slow_client, token)}/task-0/query-0"]
-        with ctx.db.read() as s:
-            assert [j.kind for j in job_rows.pending_jobs(s) if j.kind == WORK_OUT] == []
     finally:
         other.runtime.stop()
