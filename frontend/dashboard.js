@@ -88,7 +88,30 @@ async function whoami() {
   return person;
 }
 
+let routing = null; // the route being shown
+let routeAgain = false; // the address or the login changed while it was: show the route once more afterwards
+
+/** Show the view for the current address. One at a time: a view that finished loading after a later one (a login
+ * answered after the address changed) would otherwise replace it, and leave its timers running. */
 async function route() {
+  if (routing) {
+    routeAgain = true;
+    return routing;
+  }
+  routing = (async () => {
+    do {
+      routeAgain = false;
+      await showRoute();
+    } while (routeAgain);
+  })();
+  try {
+    await routing;
+  } finally {
+    routing = null;
+  }
+}
+
+async function showRoute() {
   for (const stop of cleanups) stop();
   cleanups = [];
   const token = api.token();

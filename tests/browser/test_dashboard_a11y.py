@@ -116,3 +116,32 @@ def test_statistics_archive_and_confirmations_in_the_dashboard(trace_server: Any
     page.wait_for_function("() => !document.querySelector('#toast').hidden"
                            " && document.querySelector('#toast').textContent.includes('archive it instead')")
     assert exp.get_study(study)["archived_at"]  # refused: the study and its participant are still there
+
+
+SLOW_STUDY_LIST = """() => {
+  const original = window.fetch;
+  window.slowListsDone = 0;
+  window.fetch = (input, init) => String(input).includes("/studies?include_archived")
+    ? new Promise((done) => setTimeout(done, 1500)).then(() => original(input, init))
+        .finally(() => { window.slowListsDone += 1; })
+    : original(input, init);
+}"""
+
+
+@pytest.mark.browser
+def test_a_view_that_loads_slowly_never_replaces_the_one_asked_for_after_it(trace_server: Any,
+                                                                            browser_page: Any) -> None:
+    server = trace_server
+    exp = ExperimenterClient(server.url, token=EXPERIMENTER_TOKEN)
+    study = exp.create_study(study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=0, n_tests=0))["id"]
+    page = browser_page
+    log_in(page, server.url, EXPERIMENTER_TOKEN)
+    page.wait_for_selector("#toggle-archived")
+    page.evaluate(SLOW_STUDY_LIST)
+    # the study list is asked for first and answers last; the study page, asked for after it, must stay
+    page.evaluate(f"() => {{ location.hash = '#/audit'; setTimeout(() => {{ location.hash = '#/'; }}, 50);"
+                  f" setTimeout(() => {{ location.hash = '#/study/{study}'; }}, 300); }}")
+    page.wait_for_function("() => window.slowListsDone >= 1", timeout=60_000)
+    page.wait_for_selector("#funnel", timeout=60_000)
+    page.wait_for_timeout(500)  # a stale view would replace it now, if it were going to
+    assert page.locator("#funnel").count() == 1 and page.locator("#toggle-archived").count() == 0
