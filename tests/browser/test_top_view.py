@@ -45,6 +45,25 @@ def _placed_text(page) -> str:
     return page.locator(".placed").first.inner_text()
 
 
+# Draws the robot's hand and arm over the bowl, reads which object a click at the bowl's centre reaches, then
+# puts the robot back as it was.
+ROBOT_OVER_THE_BOWL = """() => {
+  const svg = document.querySelector('#top-view svg');
+  const hand = svg.querySelector('.robot-hand'), arm = svg.querySelector('.robot-arm');
+  const box = svg.querySelector('.object-bowl').getBoundingClientRect();
+  const [sx, sy] = [box.left + box.width / 2, box.top + box.height / 2];
+  const at = new DOMPoint(sx, sy).matrixTransform(svg.getScreenCTM().inverse());
+  const saved = [hand.getAttribute('cx'), hand.getAttribute('cy'), hand.style.display, arm.getAttribute('points'),
+    arm.style.display];
+  hand.setAttribute('cx', at.x); hand.setAttribute('cy', at.y); hand.style.display = '';
+  arm.setAttribute('points', `${at.x - 60},${at.y} ${at.x + 60},${at.y}`); arm.style.display = '';
+  const reached = document.elementFromPoint(sx, sy)?.closest('.object')?.dataset.object ?? null;
+  hand.setAttribute('cx', saved[0]); hand.setAttribute('cy', saved[1]); hand.style.display = saved[2];
+  arm.setAttribute('points', saved[3]); arm.style.display = saved[4];
+  return reached;
+}"""
+
+
 def test_without_webgl_a_participant_demonstrates_watches_and_answers_in_the_2d_view(mujoco_server):
     if not CHROMIUM.exists():
         pytest.skip(f"{CHROMIUM} not found")
@@ -63,6 +82,7 @@ def test_without_webgl_a_participant_demonstrates_watches_and_answers_in_the_2d_
         assert "in the 2D view" in page.locator("#status").inner_text()
         labels = page.eval_on_selector_all("#top-view [data-label] text", "nodes => nodes.map((n) => n.textContent)")
         assert {"dinner plate", "small plate", "bowl", "knife", "fork", "Table A", "Table B"} <= set(labels)
+        assert page.evaluate(ROBOT_OVER_THE_BOWL) == "bowl"  # the arm passing over an object never takes its click
         page.screenshot(path=str(SHOTS / "demo-laptop.png")) if SHOTS else None
         assert_accessible(page, "demonstration in the 2D view (1366x768)")
         page.set_viewport_size(PHONE)
