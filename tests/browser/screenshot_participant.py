@@ -16,6 +16,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 import httpx  # noqa: E402
 
 from conftest import LiveServer, launch_chromium  # noqa: E402
+from joining import join_and_begin  # noqa: E402
 from tests.web.conftest import open_study, study_spec  # noqa: E402
 
 DOCS = Path(__file__).resolve().parents[2] / "docs"
@@ -40,11 +41,7 @@ def main(out: Path = OUT, viewport: dict[str, int] = LAPTOP, answer: Path | None
             study_id = open_study(server.url, spec)
             with launch_chromium(viewport) as context:
                 page = context.new_page()
-                page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=screenshot")
-                page.get_by_role("button", name="I agree, continue").click()
-                page.get_by_role("button", name="Start").click()
-                page.get_by_role("button", name="Begin this task").click()
-                token = page.url.rstrip("/").rsplit("/", 1)[-1]
+                token = join_and_begin(page, server.url, study_id, "screenshot")
                 headers = {"Authorization": f"Bearer {token}"}
                 for demo in (["dinner_plate", "small_plate", "bowl", "knife", "fork"], ["dinner_plate", "bowl"]):
                     for obj in demo:

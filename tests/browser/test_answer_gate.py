@@ -16,6 +16,7 @@ from tests.waiting import wait_until
 from tests.web.conftest import EXPERIMENTER_TOKEN, open_study, study_spec
 
 from conftest import TIMEOUT_MS, LiveServer
+from joining import join_and_begin
 
 pytestmark = pytest.mark.browser
 
@@ -46,10 +47,7 @@ def test_a_player_that_goes_quiet_part_way_holds_the_answer_and_is_loaded_again(
     page = browser_page  # the 3D view, chosen
     spec = study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=1, n_tests=0)
     study_id = open_study(mujoco_server.url, spec)
-    page.goto(f"{mujoco_server.url}/study/{study_id}/join?PROLIFIC_PID=gate-1")
-    page.get_by_role("button", name="I agree, continue").click()
-    page.get_by_role("button", name="Start").click()
-    page.get_by_role("button", name="Begin this task").click()
+    join_and_begin(page, mujoco_server.url, study_id, "gate-1")
     for obj in ("dinner_plate", "bowl"):
         page.wait_for_selector("#finish:not([disabled])", timeout=TIMEOUT_MS)
         page.locator(f'button.object[data-object="{obj}"]').click()

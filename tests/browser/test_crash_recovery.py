@@ -15,6 +15,8 @@ from PIL import Image
 
 from tests.web.conftest import ServerProcess, open_study, study_spec
 
+from joining import join_and_begin
+
 pytestmark = pytest.mark.browser
 WAIT_MS = 120_000
 PLACED = "name => document.querySelector('.placed')?.textContent.includes(name)"  # a function: the page's CSP
@@ -76,10 +78,7 @@ def test_the_page_recovers_from_a_kill_and_its_view_agrees_with_its_panel(browse
     try:
         study_id = open_study(server.url, study_spec(["active"], n_practice=0, n_demonstrations=2, n_queries=1,
                                                      n_tests=0))
-        page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=crash-1&STUDY_ID=s1&SESSION_ID=x1")
-        page.get_by_role("button", name="I agree, continue").click()
-        page.get_by_role("button", name="Start").click()
-        page.get_by_role("button", name="Begin this task").click()
+        token = join_and_begin(page, server.url, study_id, "crash-1", query="&STUDY_ID=s1&SESSION_ID=x1")
         page.wait_for_selector("#viewer-frame", timeout=WAIT_MS)
         empty = _settled_view(page)
 
@@ -95,7 +94,6 @@ def test_the_page_recovers_from_a_kill_and_its_view_agrees_with_its_panel(browse
         page.wait_for_selector("#finish:not([disabled])", timeout=WAIT_MS)
         placed = page.locator(".placed").inner_text()
         assert "dinner plate" in placed and "bowl" in placed
-        token = page.url.rstrip("/").rsplit("/", 1)[-1]
         state = httpx.get(f"{server.url}/api/v1/me", headers={"Authorization": f"Bearer {token}"}, timeout=60).json()
         assert state["demonstration"]["placed"] == ["dinner_plate", "bowl"] and state["demonstration"]["settled"]
         after = _settled_view(page)

@@ -17,20 +17,13 @@ from tests.web.conftest import EXPERIMENTER_TOKEN, open_study, study_spec
 
 from accessibility import assert_accessible
 from conftest import CHROMIUM, NO_WEBGL_ARGS, TIMEOUT_MS, launch_chromium
+from joining import join_and_begin
 
 pytestmark = pytest.mark.browser
 
 SHOTS = None if not os.environ.get("TABLETEACH_SHOTS") else Path(os.environ["TABLETEACH_SHOTS"])
 LAPTOP = {"width": 1366, "height": 768}
 PHONE = {"width": 390, "height": 844}
-
-
-def _begin(page, url: str, study_id: str, pid: str) -> None:
-    """Open the study link, consent, read the instructions and the task's introduction."""
-    page.goto(f"{url}/study/{study_id}/join?PROLIFIC_PID={pid}")
-    page.get_by_role("button", name="I agree, continue").click()
-    page.get_by_role("button", name="Start").click()
-    page.get_by_role("button", name="Begin this task").click()
 
 
 def _events(url: str, study_id: str) -> list[dict[str, str]]:
@@ -71,7 +64,7 @@ def test_without_webgl_a_participant_demonstrates_watches_and_answers_in_the_2d_
     study_id = open_study(mujoco_server.url, spec)
     with launch_chromium(LAPTOP, NO_WEBGL_ARGS) as context:
         page = context.new_page()
-        _begin(page, mujoco_server.url, study_id, "flat-1")
+        join_and_begin(page, mujoco_server.url, study_id, "flat-1")
         assert page.evaluate("() => !document.createElement('canvas').getContext('webgl')")  # really no WebGL
         page.locator("#top-view svg .object-bowl").wait_for()
         frame = page.locator("#viewer-frame")
@@ -127,7 +120,7 @@ def test_the_participant_switches_between_the_3d_and_the_2d_view_and_the_choice_
     page = default_view_page
     spec = study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=1, n_tests=0)
     study_id = open_study(mujoco_server.url, spec)
-    _begin(page, mujoco_server.url, study_id, "switch-1")
+    join_and_begin(page, mujoco_server.url, study_id, "switch-1")
     page.wait_for_function("() => document.getElementById('viewer-frame').getAttribute('src')")
     src = page.locator("#viewer-frame").get_attribute("src")
     assert "fixedDpr=0.5" in src  # software WebGL here: the 3D view is drawn at half resolution
@@ -155,7 +148,7 @@ BLOCK_MAIN_THREAD = "(ms) => { const end = performance.now() + ms; while (perfor
 def test_a_page_that_stalls_under_the_3d_view_switches_to_the_2d_view_and_says_why(default_view_page, mujoco_server):
     page = default_view_page
     spec = study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=1, n_tests=0)
-    _begin(page, mujoco_server.url, open_study(mujoco_server.url, spec), "stall-1")
+    join_and_begin(page, mujoco_server.url, open_study(mujoco_server.url, spec), "stall-1")
     page.wait_for_function("() => document.getElementById('viewer-frame').getAttribute('src')")
     for _ in range(2):  # two stalls of more than 5 s, as software WebGL caused them on a loaded laptop
         page.evaluate(BLOCK_MAIN_THREAD, 5500)

@@ -11,6 +11,8 @@ import pytest
 from tests.waiting import wait_until
 from tests.web.conftest import open_study, study_spec
 
+from joining import join_and_begin
+
 pytestmark = pytest.mark.browser
 PACING = "() => ({ ...window.tableteachPacing })"
 
@@ -26,11 +28,7 @@ def test_the_3d_view_draws_nothing_while_idle_and_draws_while_the_robot_moves(br
     server, page = mujoco_server, browser_page
     spec = study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=0, n_tests=0)
     study_id = open_study(server.url, spec)
-    page.goto(f"{server.url}/study/{study_id}/join?PROLIFIC_PID=pacing")
-    page.get_by_role("button", name="I agree, continue").click()
-    page.get_by_role("button", name="Start").click()
-    page.get_by_role("button", name="Begin this task").click()
-    token = page.url.rstrip("/").rsplit("/", 1)[-1]
+    token = join_and_begin(page, server.url, study_id, "pacing")
     headers = {"Authorization": f"Bearer {token}"}
     pid = httpx.get(f"{server.url}/api/v1/me", headers=headers).json()["participant_id"]
     key = f"{pid}/0"

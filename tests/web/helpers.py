@@ -16,7 +16,12 @@ def bearer(token: str) -> dict[str, str]:
 
 def make_study(client: Any, conditions: list[str] | None = None, **extra: Any) -> str:
     """Create and open a study in-process; its id."""
-    response = client.post("/api/v1/studies", json=study_spec(conditions or ["active"], **extra), headers=EXP)
+    return open_spec(client, study_spec(conditions or ["active"], **extra))
+
+
+def open_spec(client: Any, spec: dict[str, Any]) -> str:
+    """Create a study from a whole spec in-process and open it; its id."""
+    response = client.post("/api/v1/studies", json=spec, headers=EXP)
     assert response.status_code == 201, response.text
     study_id = response.json()["id"]
     assert client.post(f"/api/v1/studies/{study_id}/open", headers=EXP).status_code == 200

@@ -21,7 +21,7 @@ from tableteach.core.exact.mapping import map_formula
 from tableteach.core.exact.similarity import expected_similarity
 
 from ..study_objects import LUNCH_TRUTH, SEVEN_OBJECTS, TEN_OBJECTS, lunch_study
-from .helpers import EXP, bearer, to_teaching
+from .helpers import EXP, bearer, open_spec, to_teaching
 
 NAMES = [o["name"] for o in SEVEN_OBJECTS]
 TASK = objects_task(tuple(NAMES))
@@ -32,14 +32,6 @@ DEMONSTRATIONS = (["lunch_box", "spoon", "napkin"], ["spoon", "lunch_box", "napk
 def seven_study(**extra: Any) -> dict[str, Any]:
     """A lunch-packing study of seven objects: two demonstrations, two active queries, one test."""
     return lunch_study(**{"objects": SEVEN_OBJECTS, "n_demonstrations": 2, "n_queries": 2, "n_tests": 1, **extra})
-
-
-def _created(client: Any, spec: dict[str, Any]) -> str:
-    response = client.post("/api/v1/studies", json=spec, headers=EXP)
-    assert response.status_code == 201, response.text
-    study_id = response.json()["id"]
-    assert client.post(f"/api/v1/studies/{study_id}/open", headers=EXP).status_code == 200
-    return study_id
 
 
 def _satisfies(trace: list[list[str]]) -> bool:
@@ -101,7 +93,7 @@ def _rows(files: zipfile.ZipFile, name: str) -> list[dict[str, str]]:
 
 def test_a_participant_teaches_a_seven_object_study_and_every_view_holds_the_exact_learners_numbers(
         app_client: Any, tmp_path: Any, capsys: Any) -> None:
-    study_id = _created(app_client, seven_study())
+    study_id = open_spec(app_client, seven_study())
     done = teach(app_client, study_id)
     domain = get_domain(TASK)
     space = domain.clause_space
@@ -268,7 +260,7 @@ def test_forced_onto_the_exact_path_a_four_object_study_agrees_with_the_enumerat
     objects = [o for o in SEVEN_OBJECTS if o["name"] in FOUR_NAMES]
     spec = lunch_study(objects=objects, n_demonstrations=2, n_queries=3, n_tests=1,
                        tasks=[{"key": "custom", "ground_truth": FOUR_TRUTH}])
-    study_id = _created(app_client, spec)
+    study_id = open_spec(app_client, spec)
     token, state = to_teaching(app_client, study_id)
     h = bearer(token)
     for demonstration in (["lunch_box", "napkin", "spoon"], ["spoon", "lunch_box", "napkin", "apple"]):
@@ -333,7 +325,7 @@ def test_past_five_objects_the_robots_turn_is_planned_on_the_learner_thread_not_
 
     plan = RecordingPlan()
     app_client.ctx.planner = Planner(plan)
-    token, state = to_teaching(app_client, _created(app_client, seven_study(n_demonstrations=1)))
+    token, state = to_teaching(app_client, open_spec(app_client, seven_study(n_demonstrations=1)))
     h = bearer(token)
     for obj in DEMONSTRATIONS[0]:
         assert app_client.post("/api/v1/me/placements", json={"object": obj}, headers=h).status_code == 200

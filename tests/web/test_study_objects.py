@@ -13,7 +13,7 @@ from typing import Any
 from tableteach.core.domain import get_domain, objects_task
 
 from ..study_objects import EIGHT_OBJECTS, LUNCH_OBJECTS, LUNCH_TRUTH, lunch_study
-from .helpers import EXP, bearer, to_teaching
+from .helpers import EXP, bearer, open_spec, to_teaching
 
 NAMES = [o["name"] for o in LUNCH_OBJECTS]
 
@@ -177,16 +177,8 @@ def _until_finished(client: Any, h: dict[str, str], state: dict[str, Any]) -> di
     return latest["state"]
 
 
-def _created(client: Any, spec: dict[str, Any]) -> str:
-    response = client.post("/api/v1/studies", json=spec, headers=EXP)
-    assert response.status_code == 201, response.text
-    study_id = response.json()["id"]
-    assert client.post(f"/api/v1/studies/{study_id}/open", headers=EXP).status_code == 200
-    return study_id
-
-
 def test_a_participant_teaches_a_study_with_its_own_objects_and_the_exports_carry_them(app_client: Any) -> None:
-    study_id = _created(app_client, lunch_study())
+    study_id = open_spec(app_client, lunch_study())
     _token, done = _teach(app_client, study_id)
     learned = done["completion"]["learned"][0]
     assert set(learned["map_formula"].replace("(", " ").replace(")", " ").replace("!", " ").split()) - {
@@ -246,7 +238,7 @@ def test_tableteach_replay_reproduces_the_beliefs_of_a_study_with_its_own_object
                                                                                    capsys: Any) -> None:
     from tableteach.cli import main
 
-    study_id = _created(app_client, lunch_study())
+    study_id = open_spec(app_client, lunch_study())
     _teach(app_client, study_id)
     archive = tmp_path / "exports.zip"
     archive.write_bytes(app_client.get(f"/api/v1/studies/{study_id}/exports/exports.zip", headers=EXP).content)
