@@ -7,7 +7,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from typing import Any
 
-from sqlalchemy import and_, bindparam, delete, func, insert, select
+from sqlalchemy import Row, and_, bindparam, delete, func, insert, select
 from sqlalchemy.exc import IntegrityError, OperationalError
 from sqlalchemy.orm import Session
 from sqlalchemy.orm.exc import StaleDataError
@@ -440,6 +440,15 @@ def iter_study_task_sessions(session: Session, *, study_id: str,
     if not include_pilot:
         stmt = stmt.where(ParticipantRow.pilot.is_(False))
     yield from session.scalars(stmt)
+
+
+def event_times(session: Session, *, participant_id: int, kinds: tuple[str, ...]) -> list[Row[Any]]:
+    """One participant's events of the given kinds, in order, as plain rows of what a timeline needs (kind, step,
+    payload, created_at): read on every state view, so without the ORM's per-object bookkeeping."""
+    stmt = (select(EventRow.kind, EventRow.task_index, EventRow.step_kind, EventRow.step_index, EventRow.payload,
+                   EventRow.created_at)
+            .where(EventRow.participant_id == participant_id, EventRow.kind.in_(kinds)).order_by(EventRow.seq))
+    return list(session.execute(stmt))
 
 
 def participant_events(session: Session, *, participant_id: int, kinds: tuple[str, ...]) -> list[EventRow]:

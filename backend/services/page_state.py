@@ -70,7 +70,7 @@ def _calibrated_progress(out: dict[str, Any], s: Any, participant: ParticipantRo
     if participant.stage not in UNDER_WAY:
         progress["seconds_left"] = 0
         return
-    events = repo.participant_events(s, participant_id=participant.id, kinds=TIMED_EVENTS)
+    events = repo.event_times(s, participant_id=participant.id, kinds=TIMED_EVENTS)
     joined = aware(participant.created_at) or utcnow()
     line = time_estimate.timeline(events, joined)
     demos = line.demo_objects
