@@ -9,8 +9,10 @@ every 50 ms and the script reports its latency (median, p99) and failures.
 - join flood: --joins joins from one address at once (the per-address limit), then a study with 20 places
   flooded on a server without that limit; joins accepted, refused (429, 409) and the database's growth.
 - event streams: 1000 streams for one participant token (at most two stay open); 50 participants place
-  objects for --seconds without streams (the machine's baseline), then 500 streams (two per participant) are
-  opened and 50 others place objects as long; streams accepted and still open, events received, and the 503
+  objects for --seconds, one action every --pause seconds (default 1: 50 actions a second), without streams
+  (the machine's baseline), then 500 streams (two per participant) are opened and 50 of their participants
+  place objects as long (judged: /healthz p99 under 100 ms); then, for reference and not judged, 50 others
+  without a pause (the server saturated); streams accepted and still open, events received, and the 503
   beyond the process cap.
 - wrong keys: --wrong wrong experimenter keys from one address with the right key every 10th request.
 - deep formula: custom tasks whose ground truth nests 1,990 negations or 996 parentheses.
@@ -41,6 +43,10 @@ import httpx
 TOKEN = "abuse-" + secrets.token_urlsafe(32)
 TARGET_HOLD_MS = 200.0  # /healthz while slow connections are held
 TARGET_STREAMS_P99_MS = 100.0  # /healthz while streams are open and placements go on
+# 50 participants acting once a second are 50 actions a second: three times bench_scale's people (one action per
+# 3 s) for 50, or 150 such people on one process, five times the 30 per process the README plans for.
+PLACEMENT_PAUSE = 1.0
+FLAT_OUT_PAUSE = 0.1  # the stress figure: the server saturated, every action queued behind others
 
 
 # ------------------------------------------------------------------------------------------------ the server
@@ -337,8 +343,9 @@ async def _participant(client: httpx.AsyncClient, study: str, i: int) -> str:
     return token
 
 
-async def _place_for(client: httpx.AsyncClient, token: str, until: float, counts: Counter[str]) -> None:
-    """Place objects and finish demonstrations, one action about every 100 ms, until `until`."""
+async def _place_for(client: httpx.AsyncClient, token: str, until: float, counts: Counter[str],
+                     pause: float) -> None:
+    """Place objects and finish demonstrations, one action then `pause` seconds, until `until`."""
     h = {"Authorization": f"Bearer {token}"}
     objects = ["dinner_plate", "small_plate", "bowl", "knife", "fork"]
     i = 0
@@ -351,10 +358,10 @@ async def _place_for(client: httpx.AsyncClient, token: str, until: float, counts
         if r.status_code == 409:
             return  # this participant's demonstrations are over
         i += 1
-        await asyncio.sleep(0.1)
+        await asyncio.sleep(pause)
 
 
-def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: float) -> bool:
+def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: float, pause: float) -> bool:
     n_people = n_streams // 2
     cap = n_streams + 52  # the two of the one token, the participants' and 50 more
     say(f"\n== event streams: {one_token} for one token, then {n_streams} ({n_people} participants x 2) while 50 "
@@ -397,8 +404,9 @@ def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: 
                 baseline: Counter[str] = Counter()
                 with HealthProbe(server.port) as probe:
                     until = time.monotonic() + seconds
-                    await asyncio.gather(*(_place_for(client, t, until, baseline) for t in tokens[-50:]))
-                say(f"without the streams, placements and finishes: {dict(baseline)}; {probe.summary()}")
+                    await asyncio.gather(*(_place_for(client, t, until, baseline, pause) for t in tokens[-50:]))
+                say(f"without the streams, placements and finishes ({len(tokens[-50:])} participants, {pause:g} s "
+                    f"apart): {dict(baseline)}; {probe.summary()}")
                 # Many participants, two streams each, while placements go on.
                 readers = [StreamReader() for _ in range(2 * n_people)]
                 tasks = []
@@ -412,11 +420,19 @@ def attack_event_streams(folder: Path, one_token: int, n_streams: int, seconds: 
                 counts: Counter[str] = Counter()
                 with HealthProbe(server.port) as probe:
                     until = time.monotonic() + seconds
-                    await asyncio.gather(*(_place_for(client, t, until, counts) for t in tokens[:50]))
-                say(f"with the streams, placements and finishes: {dict(counts)}; {probe.summary()}")
+                    await asyncio.gather(*(_place_for(client, t, until, counts, pause) for t in tokens[:50]))
+                say(f"with the streams, placements and finishes ({pause:g} s apart): {dict(counts)}; {probe.summary()}")
                 say(f"change events read: {sum(r.changes for r in readers)} (streams of the 50 who acted: "
                     f"{sum(r.changes for r in readers[:100])})")
                 ok = ok and probe.p99() < TARGET_STREAMS_P99_MS and probe.failures == 0
+                # For reference, not judged: the same participants without a pause, the server saturated.
+                flat: Counter[str] = Counter()
+                with HealthProbe(server.port) as probe:
+                    until = time.monotonic() + seconds
+                    await asyncio.gather(*(_place_for(client, t, until, flat, FLAT_OUT_PAUSE)
+                                           for t in tokens[50:100]))
+                say(f"stress (not judged), with the streams, 50 others {FLAT_OUT_PAUSE:g} s apart: {dict(flat)}; "
+                    f"{probe.summary()}")
                 # Beyond the process cap: 503 with Retry-After.
                 extra = [StreamReader() for _ in late]
                 extra_tasks = [asyncio.ensure_future(r.run(server.port, token, stop))
@@ -481,6 +497,8 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scale", type=float, default=1.0, help="multiply every count by this (default 1)")
     parser.add_argument("--seconds", type=float, default=10.0, help="placements under the open streams (default 10)")
+    parser.add_argument("--pause", type=float, default=PLACEMENT_PAUSE,
+                        help=f"seconds between a participant's actions under the streams (default {PLACEMENT_PAUSE:g})")
     parser.add_argument("--only", choices=["slow", "joins", "streams", "keys", "formula"], action="append",
                         help="run only these attacks (repeatable)")
     parser.add_argument("--probe-port", type=int, help=argparse.SUPPRESS)  # the /healthz probe's own process
@@ -488,8 +506,8 @@ def main() -> int:
     if args.probe_port:
         run_probe(args.probe_port)
         return 0
-    if not 0 < args.scale <= 2 or not 0 < args.seconds <= 60:
-        parser.error("--scale must be in (0, 2] and --seconds in (0, 60]: the attacks are bounded")
+    if not 0 < args.scale <= 2 or not 0 < args.seconds <= 60 or not 0 < args.pause <= 10:
+        parser.error("--scale must be in (0, 2], --seconds in (0, 60] and --pause in (0, 10]: the attacks are bounded")
     from tableteach.web.limits import raise_open_files_limit
 
     soft, _hard = raise_open_files_limit()
@@ -510,7 +528,8 @@ def main() -> int:
                 (root / name / "places").mkdir()
                 held[name] = attack_join_flood(root / name, count(300))
             elif name == "streams":
-                held[name] = attack_event_streams(root / name, count(1000), 2 * (count(500) // 2), args.seconds)
+                held[name] = attack_event_streams(root / name, count(1000), 2 * (count(500) // 2), args.seconds,
+                                                  args.pause)
             elif name == "keys":
                 held[name] = attack_wrong_keys(root / name, max(40, count(200)))
             else:
