@@ -11,8 +11,8 @@ from collections.abc import Callable, Iterable, Sequence
 import mujoco
 import numpy as np
 import viser
-from viser import _messages as viser_messages
 
+from .pose_messages import SetOrientationMessage, SetPositionMessage
 from .scene import scene_objects
 from .world import OBJECTS
 
@@ -58,9 +58,12 @@ def moving_bodies(model: mujoco.MjModel) -> frozenset[str]:
     return frozenset(model.body(b).name for b in range(model.nbody) if model.body_weldid[b] != 0)
 
 
-def _close(new: list[float], current: np.ndarray) -> bool:
-    """np.allclose(new, current) for a short vector, as viser's setters decide that nothing changed."""
-    return all(abs(a - b) <= 1e-8 + 1e-5 * abs(b) for a, b in zip(new, current.tolist(), strict=True))
+def _close(new: list[float], shown: list[float]) -> bool:
+    """np.allclose(new, shown) for short lists, as viser's setters decide that nothing changed (NaN is never close)."""
+    for a, b in zip(new, shown, strict=True):
+        if not abs(a - b) <= 1e-8 + 1e-5 * abs(b):
+            return False
+    return True
 
 
 def fast_pose_writer(frame: viser.FrameHandle) -> Callable[[np.ndarray], None] | None:
@@ -70,24 +73,27 @@ def fast_pose_writer(frame: viser.FrameHandle) -> Callable[[np.ndarray], None] |
     viser 1.1's pose setters check each value against the last with np.allclose and validate it first: two thirds
     of the CPU of a moving robot's live view. BodyMirror compares poses itself, all bodies at once, so the writer
     does what the setters do after their validation: skip a part that is np.allclose to the handle's, else update
-    the handle's array and queue the same message (stamped with the scene's owner by _queue_scene_message).
-    tests/sim/test_view.py fails if the messages differ."""
+    the handle's array and queue the same message (stamped with the scene's owner by _queue_scene_message), one
+    that serialises itself directly (pose_messages.py). tests/sim/test_view.py fails if the messages differ."""
     impl = getattr(frame, "_impl", None)
     api = getattr(impl, "api", None)
     queue = getattr(api, "_queue_scene_message", None)
     if impl is None or queue is None or not hasattr(impl, "position") or not hasattr(impl, "wxyz"):
         return None
     name = impl.name
+    shown = [impl.position.tolist(), impl.wxyz.tolist()]  # the handle's arrays as lists: compared every frame
 
     def write(pose: np.ndarray) -> None:
         values = pose.tolist()
         position, wxyz = values[:3], values[3:]
-        if not _close(position, impl.position):
+        if not _close(position, shown[0]):
             impl.position[:] = position
-            queue(viser_messages.SetPositionMessage(name, tuple(position)))
-        if not _close(wxyz, impl.wxyz):
+            shown[0] = position
+            queue(SetPositionMessage(name, tuple(position)))
+        if not _close(wxyz, shown[1]):
             impl.wxyz[:] = wxyz
-            queue(viser_messages.SetOrientationMessage(name, tuple(wxyz)))
+            shown[1] = wxyz
+            queue(SetOrientationMessage(name, tuple(wxyz)))
 
     return write
 
