@@ -513,6 +513,7 @@ class MujocoRobot:
         """The animator: every FRAME_SECONDS, show each moving table's current frame to its browsers; now and
         then, free the simulations of tables left idle."""
         reaped = time.monotonic()
+        due = 0.0  # when the next frame is due: frames keep their pace however long showing one took
         while not self._closing.is_set():
             if time.monotonic() - reaped > REAP_EVERY_SECONDS:
                 self._reap_idle()
@@ -522,8 +523,10 @@ class MujocoRobot:
             if not moving:
                 self._animate.wait(REAP_EVERY_SECONDS)
                 self._animate.clear()
+                due = 0.0
                 continue
             now = time.monotonic()
+            due = max(due + FRAME_SECONDS, now)  # a frame late is shown now, not made up for with a burst
             for table in moving:
                 try:
                     self._advance(table, now)
@@ -531,7 +534,7 @@ class MujocoRobot:
                     log.exception("robot %s failed while moving", table.key)
                     with table.lock:
                         table.pending.clear()
-            self._closing.wait(FRAME_SECONDS)
+            self._closing.wait(max(0.0, due + FRAME_SECONDS - time.monotonic()))
 
     def _reap_idle(self) -> None:
         """Free the worlds of tables unused for idle_seconds (the stored placements rebuild them when needed)."""
