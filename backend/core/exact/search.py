@@ -7,16 +7,17 @@ good (``lower``: its F items and its orders whose antecedent occurred, no G clau
 and the scores are exact posterior probabilities. The min-regret plan maximises P(acceptable);
 the active query minimises |2 P(acceptable) - 1|. Only one execution of each set that provably
 scores the same is visited (``moves.py``). When the moves keep at most ``EXHAUSTIVE_ACTIVE``
-executions, the active query scores all of them in one batch (proven; ties, scores within
-``TOLERANCE`` of the least whatever their last bits: the first, shortest and in proposition order);
-past that it searches. With ``max_expansions`` large enough the search is
+executions, the active query scores all of them in one batch (proven); its ties (scores within
+``TOLERANCE`` of the least, whatever their last bits) are drawn uniformly among every tied execution,
+kept or not, from the seed (``ties.py``), or with ``ties="first"`` the first, shortest and in
+proposition order. Past that it searches. With ``max_expansions`` large enough the search is
 exhaustive where the bounds do not prune, so its result is the proven optimum
 (``SearchResult.proven``); otherwise it is the best execution found. Prefixes are expanded
 ``batch_size`` at a time (lowest bound first, then ``_priority``), their children scored in one
 batched DP, then their bounds in another (a query needs only the bound on the side of 1/2 that its
 own score is on). The active query starts from the best of ``dives`` seeded random walks (every child on
-the way scored), which the many ties favour, so the bounds prune from the start. Ties keep the
-first found.
+the way scored), which the many ties favour, so the bounds prune from the start. The search's ties
+keep the first found.
 """
 
 from __future__ import annotations
@@ -31,9 +32,11 @@ from .batch import Batch, of_events
 from .constraints import Constraint, Vocabulary
 from .moves import Moves, lower
 from .posterior import ExactPosterior
+from .ties import draw_tied
 
 TOLERANCE = 1e-12
 OBJECTIVES = ("min-regret", "active")
+TIES = ("uniform", "first")  # the active query's, where it scored every kept execution
 # The active query's bounds rarely prune (most prefixes can still end either way), so it gets a budget.
 DEFAULT_EXPANSIONS = {"min-regret": 2_000, "active": 64}
 # Up to this many executions kept by the moves, the active query scores them all (one batch) and is proven.
@@ -107,10 +110,13 @@ def best_execution(
     batch_size: int = 8,
     dives: int = 8,
     seed: int = 0,
+    ties: str = "uniform",
 ) -> SearchResult:
     """The execution (propositions in order of first occurrence) that is best for the objective."""
     if objective not in OBJECTIVES:
         raise ValueError(f"unknown search objective {objective!r}; expected one of {', '.join(OBJECTIVES)}")
+    if ties not in TIES:
+        raise ValueError(f"unknown tie rule {ties!r}; expected one of {', '.join(TIES)}")
     if max_expansions is None:
         max_expansions = DEFAULT_EXPANSIONS[objective]
     voc = posterior.prior.vocabulary
@@ -121,9 +127,12 @@ def best_execution(
         if every is not None:
             probs = posterior.p_within(of_events(voc, [tuple(moves.names[i] for i in e) for e in every]))
             scores = np.abs(2.0 * probs - 1.0)
-            # the first of the ties in the walk's order: equal scores may differ in the last bits by rounding
-            k = int(np.flatnonzero(scores <= scores.min() + TOLERANCE)[0])
-            return SearchResult(tuple(moves.names[i] for i in every[k]), float(probs[k]), len(every), True)
+            tied = np.flatnonzero(scores <= scores.min() + TOLERANCE)  # equal scores may differ in their last bits
+            k, events = int(tied[0]), every[int(tied[0])]
+            if ties == "uniform":
+                drawn, events = draw_tied(moves, [every[int(t)] for t in tied], np.random.default_rng(seed))
+                k = int(tied[drawn])
+            return SearchResult(tuple(moves.names[i] for i in events), float(probs[k]), len(every), True)
     root = _Node((), 0, Batch.of([voc.of_events(())], n), Batch.of([voc.everything()], n))
     root_p, lo, hi = posterior.p_within(Batch.concat([root.exact, lower(root.exact), root.upper]))
     best: tuple[tuple[int, ...], float, float] = ((), float(root_p), _score(objective, float(root_p)))
