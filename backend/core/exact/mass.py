@@ -17,8 +17,7 @@ from .relabel import antecedents_first, renumber, renumber_tokens
 from .tails import antecedents, group_mass
 
 CHUNK_BYTES = 48 << 20  # per DP call: the tails DP's tables grow as 2^|A| (|A| + 1) L
-MEMO_ROWS = 1 << 15  # per prior, then forgotten: about 25 MB at ten objects (76 coefficients a row)
-MEMO_PRIORS = 8
+MEMO_ROWS = 1 << 16  # over all priors, then all forgotten: at most about 55 MB (76 coefficients a row at n = 10)
 
 _MEMO: dict[ChainPrior, dict[bytes, np.ndarray]] = {}
 _LOCK = threading.Lock()
@@ -58,11 +57,7 @@ def prior_mass(prior: ChainPrior, batch: Batch, by_blocks: bool = False,
     keys = np.concatenate([batch.g_ok[:, None], batch.f_ok[:, None], batch.into, batch.g_extra[:, None]], axis=1)
     names = [row.tobytes() for row in keys]
     with _LOCK:
-        memo = _MEMO.get(prior)
-        if memo is None:
-            if len(_MEMO) >= MEMO_PRIORS:
-                _MEMO.clear()
-            memo = _MEMO[prior] = {}
+        memo = _MEMO.setdefault(prior, {})
         known = [memo.get(name) for name in names]
     missing = [i for i, row in enumerate(known) if row is None]
     out = np.empty((len(batch), prior.degree + 1))
@@ -73,9 +68,9 @@ def prior_mass(prior: ChainPrior, batch: Batch, by_blocks: bool = False,
         rows = np.array(missing)
         out[rows] = _prior_mass(prior, batch.take(rows), False, None)
         with _LOCK:
-            if len(memo) + len(missing) > MEMO_ROWS:
-                memo.clear()
-            memo.update((names[i], out[i].copy()) for i in missing)
+            if sum(len(table) for table in _MEMO.values()) + len(missing) > MEMO_ROWS:
+                _MEMO.clear()
+            _MEMO.setdefault(prior, {}).update((names[i], out[i].copy()) for i in missing)
     return out
 
 
