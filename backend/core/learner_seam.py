@@ -266,8 +266,9 @@ def robot_query(task: str, prior: str, flip_rate: float, data: Verdicts, strateg
                 path: str = "auto") -> tuple[Execution, float]:
     """A query by strategy ('active': the most uncertain execution; 'random'), with its P(acceptable).
 
-    Exact learner: the active query is the branch and bound of core.exact.search, seeded from the turn's
-    generator; ties keep the first execution found (not a uniform draw, as the enumerating learner's)."""
+    Exact learner: the active query is core.exact.search's, seeded from the turn's generator; where it scores
+    every kept execution, its ties are drawn uniformly as the enumerating learner's are, where it searches
+    (too many executions kept) it keeps the first found."""
     belief = belief_after(task, prior, flip_rate, data, path)
     if isinstance(belief, EnumeratedBelief):
         return query(belief.belief, strategy, rng)

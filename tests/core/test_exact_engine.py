@@ -108,3 +108,46 @@ def test_kept_executions_reach_every_score(seed):
     assert len(kept) < len(everything) / 4
     gaps = np.abs(every[:, None] - mine[None, :]).min(axis=1)
     assert gaps.max() < 1e-12
+
+
+def test_memoised_masses_are_each_rows_own_masses():
+    """A constraint met again, in another batch beside other rows, gets the masses computed for it alone."""
+    from tableteach.core.exact import mass
+
+    n, m, forbid, p_new, sat = SETTINGS[1]
+    rng = np.random.default_rng(17)
+    names = tuple(f"o{i}" for i in range(n))
+    voc = Vocabulary(names, names[:forbid] + tuple(f"t{j}" for j in range(m)))
+    prior = ChainPrior(voc, p_new, 0.5, 0.5, sat)
+    cons = _data_constraints(voc, rng, 30)
+    mass.clear_memo()
+    first = prior_mass(prior, Batch.of(cons[:20], n))
+    mixed = cons[10:] + cons[:5]
+    again = prior_mass(prior, Batch.of(mixed, n))
+    np.testing.assert_array_equal(again[:10], first[10:20])
+    np.testing.assert_allclose(again, _mass(prior, mixed, False)[:, 0], rtol=1e-12, atol=1e-300)
+
+
+def test_the_scored_query_keeps_the_first_of_its_ties_whatever_the_rounding(monkeypatch):
+    """Equal scores that differ in their last bits (another order of the same sums) pick the same execution."""
+    from tableteach.core.domain import Domain
+    from tableteach.core.exact import search
+    from tableteach.core.exact.learner import posterior_after
+    from tableteach.core.exact.moves import Moves
+
+    objects = ("a", "b", "c", "d", "e")
+    domain = Domain("five", objects, objects, objects, True, 1.0, "place")
+    data = [(domain.trace_of(("a", "b", "c")), True), (domain.trace_of(("a", "d", "b", "c")), True)]
+    post = posterior_after(domain, "chains-2020-sat", data)
+    voc = post.prior.vocabulary
+    every = search._kept_executions(Moves.of(post, objects), search.EXHAUSTIVE_ACTIVE)
+    scores = np.abs(2 * post.p_within([voc.of_events([objects[i] for i in e]) for e in every]) - 1)
+    tied = [e for e, s in zip(every, scores, strict=True) if s <= scores.min() + 1e-12]
+    assert len(tied) > 1
+    plain = search.best_execution(post, objects, "active", ties="first")
+    assert plain.proven and plain.events == tuple(objects[i] for i in tied[0])
+    exact = post.p_within
+    rng = np.random.default_rng(0)
+    monkeypatch.setattr(post, "p_within", lambda batch: exact(batch) * (1 + rng.uniform(-4e-16, 4e-16, len(batch))))
+    for _ in range(5):
+        assert search.best_execution(post, objects, "active", ties="first").events == plain.events

@@ -53,7 +53,7 @@ def _levels(n: int) -> list[np.ndarray]:
     return [np.flatnonzero(sizes == r) for r in range(n + 1)]
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=256)  # every (n, s, b) up to ten objects: 220, about 2 MB in all
 def _pairs(n: int, s: int, b: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """For every S of size s, its submasks B of size b: (S, B, S minus B) flat, and C(s, b)."""
     sets = _levels(n)[s]

@@ -29,6 +29,7 @@ from ..ltl import conj, to_text
 from ..clauses import Clause
 from .chains import ChainPrior, _levels, _pairs
 from .constraints import Constraint, Vocabulary
+from .mass import clear_memo as clear_mass_memo
 from .posterior import LN2, Datum, ExactPosterior
 
 NEG = -math.inf
@@ -446,8 +447,9 @@ _MEMO: OrderedDict[tuple[ChainPrior, Constraint, Required], _Memo] = OrderedDict
 
 
 def clear_memo() -> None:
-    """Forget every memoised max-product DP (benchmarks time cold searches)."""
+    """Forget every memoised max-product DP and prior mass (benchmarks time cold searches)."""
     _MEMO.clear()
+    clear_mass_memo()
 
 
 def _memos(prior: ChainPrior, pairs: Sequence[tuple[Constraint, Required]]) -> list[_Memo]:

@@ -27,14 +27,15 @@ from .posterior import ExactPosterior
 
 @dataclass(frozen=True)
 class Moves:
-    """Per proposition: its orderable index (or -1), extra index (or -1), which it commutes with, and the member
-    of its interchangeable group just below it (or -1)."""
+    """Per proposition: its orderable index (or -1), extra index (or -1), which it commutes with, the member
+    of its interchangeable group just below it (or -1), and its group (or -1 when a datum mentions it)."""
 
     names: tuple[str, ...]
     orderable: np.ndarray
     extra: np.ndarray
     commute: np.ndarray
     below: np.ndarray
+    group: np.ndarray
 
     @staticmethod
     def of(posterior: ExactPosterior, propositions: Sequence[str]) -> "Moves":
@@ -61,15 +62,16 @@ class Moves:
             mentioned |= {voc.orderable[i] for i in range(voc.n) if s.f_ok >> i & 1}
             mentioned |= {p for j, p in enumerate(voc.extra) if not s.g_extra >> j & 1}
         forbiddable = set(voc.forbiddable)
-        below = np.full(P, -1)
+        below, group = np.full(P, -1), np.full(P, -1)
         last_of: dict[tuple[bool, bool], int] = {}
         for i, p in enumerate(names):
             if p in mentioned:
                 continue
-            group = (bool(extra[i] >= 0), p in forbiddable)
-            below[i] = last_of.get(group, -1)
-            last_of[group] = i
-        return Moves(names, orderable, extra, commute, below)
+            key = (bool(extra[i] >= 0), p in forbiddable)
+            below[i] = last_of.get(key, -1)
+            last_of[key] = i
+            group[i] = list(last_of).index(key)
+        return Moves(names, orderable, extra, commute, below, group)
 
     def children(self, events: tuple[int, ...], used: int) -> list[int]:
         """Propositions that may come next after these (indices into the propositions)."""

@@ -7,14 +7,17 @@ good (``lower``: its F items and its orders whose antecedent occurred, no G clau
 and the scores are exact posterior probabilities. The min-regret plan maximises P(acceptable);
 the active query minimises |2 P(acceptable) - 1|. Only one execution of each set that provably
 scores the same is visited (``moves.py``). When the moves keep at most ``EXHAUSTIVE_ACTIVE``
-executions, the active query scores all of them in one batch (proven; ties: the first, shortest
-and in proposition order); past that it searches. With ``max_expansions`` large enough the search is
+executions, the active query scores all of them in one batch (proven); its ties (scores within
+``TOLERANCE`` of the least, whatever their last bits) are drawn uniformly among every tied execution,
+kept or not, from the seed (``ties.py``), or with ``ties="first"`` the first, shortest and in
+proposition order. Past that it searches. With ``max_expansions`` large enough the search is
 exhaustive where the bounds do not prune, so its result is the proven optimum
 (``SearchResult.proven``); otherwise it is the best execution found. Prefixes are expanded
 ``batch_size`` at a time (lowest bound first, then ``_priority``), their children scored in one
-batched DP. The active query starts from the best of ``dives`` seeded random walks (every child on
-the way scored), which the many ties favour, so the bounds prune from the start. Ties keep the
-first found.
+batched DP, then their bounds in another (a query needs only the bound on the side of 1/2 that its
+own score is on). The active query starts from the best of ``dives`` seeded random walks (every child on
+the way scored), which the many ties favour, so the bounds prune from the start. The search's ties
+keep the first found.
 """
 
 from __future__ import annotations
@@ -29,9 +32,11 @@ from .batch import Batch, of_events
 from .constraints import Constraint, Vocabulary
 from .moves import Moves, lower
 from .posterior import ExactPosterior
+from .ties import draw_tied
 
 TOLERANCE = 1e-12
 OBJECTIVES = ("min-regret", "active")
+TIES = ("uniform", "first")  # the active query's, where it scored every kept execution
 # The active query's bounds rarely prune (most prefixes can still end either way), so it gets a budget.
 DEFAULT_EXPANSIONS = {"min-regret": 2_000, "active": 64}
 # Up to this many executions kept by the moves, the active query scores them all (one batch) and is proven.
@@ -105,10 +110,13 @@ def best_execution(
     batch_size: int = 8,
     dives: int = 8,
     seed: int = 0,
+    ties: str = "uniform",
 ) -> SearchResult:
     """The execution (propositions in order of first occurrence) that is best for the objective."""
     if objective not in OBJECTIVES:
         raise ValueError(f"unknown search objective {objective!r}; expected one of {', '.join(OBJECTIVES)}")
+    if ties not in TIES:
+        raise ValueError(f"unknown tie rule {ties!r}; expected one of {', '.join(TIES)}")
     if max_expansions is None:
         max_expansions = DEFAULT_EXPANSIONS[objective]
     voc = posterior.prior.vocabulary
@@ -118,8 +126,13 @@ def best_execution(
         every = _kept_executions(moves, EXHAUSTIVE_ACTIVE)
         if every is not None:
             probs = posterior.p_within(of_events(voc, [tuple(moves.names[i] for i in e) for e in every]))
-            k = int(np.argmin(np.abs(2.0 * probs - 1.0)))  # the first of the ties, in the walk's order
-            return SearchResult(tuple(moves.names[i] for i in every[k]), float(probs[k]), len(every), True)
+            scores = np.abs(2.0 * probs - 1.0)
+            tied = np.flatnonzero(scores <= scores.min() + TOLERANCE)  # equal scores may differ in their last bits
+            k, events = int(tied[0]), every[int(tied[0])]
+            if ties == "uniform":
+                drawn, events = draw_tied(moves, [every[int(t)] for t in tied], np.random.default_rng(seed))
+                k = int(tied[drawn])
+            return SearchResult(tuple(moves.names[i] for i in events), float(probs[k]), len(every), True)
     root = _Node((), 0, Batch.of([voc.of_events(())], n), Batch.of([voc.everything()], n))
     root_p, lo, hi = posterior.p_within(Batch.concat([root.exact, lower(root.exact), root.upper]))
     best: tuple[tuple[int, ...], float, float] = ((), float(root_p), _score(objective, float(root_p)))
@@ -141,21 +154,23 @@ def best_execution(
         if not children:
             continue
         exact = Batch.concat([c.exact for c in children])
-        upper = Batch.concat([c.upper for c in children])
-        parts = [exact, lower(exact), upper] if objective == "active" else [exact, upper]
-        probs = posterior.p_within(Batch.concat(parts)).reshape(len(parts), len(children)).T
-        if objective == "min-regret":  # the lower bound does not prune a maximisation
-            probs = np.concatenate([probs[:, :1], probs[:, 1:], probs[:, 1:]], axis=1)
-        for child, p in zip(children, probs[:, 0], strict=True):
+        probs = posterior.p_within(exact)
+        for child, p in zip(children, probs, strict=True):
             score = _score(objective, float(p))
             if score < best[2] - TOLERANCE:
                 best = (child.events, float(p), score)
-        for child, (p, lo, hi) in zip(children, probs, strict=True):
-            child_bound = _bound(objective, float(lo), float(hi))
-            if child_bound < best[2] - TOLERANCE and len(child.events) < len(moves.names):
+        if best[2] <= perfect + TOLERANCE:  # nothing can beat it: the children's bounds are not needed
+            break
+        open_ = np.array([k for k, c in enumerate(children) if len(c.events) < len(moves.names)], dtype=np.int64)
+        if open_.size == 0:
+            continue
+        upper = Batch.concat([children[k].upper for k in open_.tolist()])
+        bounds = _bounds(posterior, objective, exact.take(open_), upper, probs[open_])
+        for k, child_bound in zip(open_.tolist(), bounds.tolist(), strict=True):
+            if child_bound < best[2] - TOLERANCE:
                 counter += 1
-                heapq.heappush(frontier, (child_bound, _priority(objective, float(p), len(child.events)), counter,
-                                          child))
+                heapq.heappush(frontier, (child_bound, _priority(objective, float(probs[k]), len(children[k].events)),
+                                          counter, children[k]))
     proven = best[2] <= perfect + TOLERANCE or not any(b < best[2] - TOLERANCE for b, _, _, _ in frontier)
     return SearchResult(tuple(moves.names[i] for i in best[0]), best[1], expanded, proven)
 
@@ -184,6 +199,20 @@ def _bound(objective: str, lo: float, hi: float) -> float:
     if lo <= 0.5 <= hi:
         return 0.0
     return min(abs(2.0 * lo - 1.0), abs(2.0 * hi - 1.0))
+
+
+def _bounds(posterior: ExactPosterior, objective: str, exact: Batch, upper: Batch, probs: np.ndarray) -> np.ndarray:
+    """``_bound`` for many prefixes with their own P(acceptable) probs. Since lo <= P <= hi, a query needs only
+    hi when P < 1/2 and only lo when P > 1/2 (the other side cannot change the bound), so only that one is scored."""
+    if objective == "min-regret":
+        return -posterior.p_within(upper)
+    below, above = np.flatnonzero(probs < 0.5), np.flatnonzero(probs > 0.5)
+    values = posterior.p_within(Batch.concat([upper.take(below), lower(exact.take(above))]))
+    hi, lo = values[:below.size], values[below.size:]
+    out = np.zeros(probs.size)
+    out[below] = np.where(hi >= 0.5, 0.0, np.abs(2.0 * hi - 1.0))
+    out[above] = np.where(lo <= 0.5, 0.0, np.abs(2.0 * lo - 1.0))
+    return out
 
 
 def _priority(objective: str, p: float, depth: int) -> float:

@@ -36,16 +36,24 @@ def antecedents(batch: Batch) -> np.ndarray:
     return np.bitwise_or.reduce(batch.into, axis=1)
 
 
-def element_polys(prior: ChainPrior, batch: Batch) -> tuple[np.ndarray, np.ndarray]:
-    """Per constraint and object the F/G polynomial (degree 2) as last of its block and as an earlier element."""
-    voc = prior.vocabulary
-    n = voc.n
+def forbiddable_rows(prior: ChainPrior, batch: Batch, forb: np.ndarray | None) -> np.ndarray:
+    """Which objects may be forbidden, per row (M, n): given, or the vocabulary's for every row."""
+    if forb is not None:
+        return forb
+    n = prior.vocabulary.n
+    own = ((prior.vocabulary.forbiddable_orderable >> np.arange(n, dtype=np.int64)) & 1).astype(bool)
+    return np.broadcast_to(own, (len(batch), n))
+
+
+def element_polys(prior: ChainPrior, batch: Batch, forb: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Per constraint and object the F/G polynomial (degree 2) as last of its block and as an earlier element
+    (forb: which objects of each row may be forbidden, if not the vocabulary's)."""
+    n = prior.vocabulary.n
     qf, qg = prior.p_eventually, prior.p_forbid
     shifts = np.arange(n, dtype=np.int64)
     g_ok = ((batch.g_ok[:, None] >> shifts) & 1).astype(bool)
     f_ok = ((batch.f_ok[:, None] >> shifts) & 1).astype(bool)
-    forb = ((voc.forbiddable_orderable >> shifts) & 1).astype(bool)
-    qg_i = np.where(forb, qg, 0.0)[None, :]
+    qg_i = np.where(forbiddable_rows(prior, batch, forb), qg, 0.0)
     last = np.zeros((len(batch), n, 3))
     last[:, :, 0] = (1 - qg_i) * (1 - qf)
     last[:, :, 1] = np.where(f_ok, (1 - qg_i) * qf, 0.0) + np.where(g_ok, qg_i * (1 - qf), 0.0)
@@ -75,24 +83,23 @@ def _local_masks(a_mask: int) -> tuple[np.ndarray, np.ndarray]:
     return ids, glob
 
 
-def element_parts(prior: ChainPrior, batch: Batch, tokens: TokenWeights) -> np.ndarray:
+def element_parts(prior: ChainPrior, batch: Batch, tokens: TokenWeights, forb: np.ndarray | None = None) -> np.ndarray:
     """parts[role, with_g, M, n, 3]: element polynomials split by whether G(i) is chosen, token-weighted
     (role 0: last of its block, 1: an earlier element, whose item token is always there); as
     ``chains._element_parts`` for a batch."""
-    voc = prior.vocabulary
-    n, M = voc.n, len(batch)
+    n, M = prior.vocabulary.n, len(batch)
     qf, qg = prior.p_eventually, prior.p_forbid
     shifts = np.arange(n, dtype=np.int64)
     f_ok = ((batch.f_ok[:, None] >> shifts) & 1).astype(bool)
-    forb = ((voc.forbiddable_orderable >> shifts) & 1).astype(bool)
-    g_ok = ((batch.g_ok[:, None] >> shifts) & 1).astype(bool) & forb[None, :]
+    forb = forbiddable_rows(prior, batch, forb)
+    g_ok = ((batch.g_ok[:, None] >> shifts) & 1).astype(bool) & forb
     parts = np.zeros((2, 2, M, n, 3), dtype=tokens.f.dtype)
     for role in (0, 1):
         for f_on in (False, True):
             for g_on in (False, True):
                 if prior.require_satisfiable and g_on and (f_on or role == 1):
                     continue
-                w = (qf if f_on else 1 - qf) * np.where(forb, qg if g_on else 1 - qg, 1.0)[None, :]
+                w = (qf if f_on else 1 - qf) * np.where(forb, qg if g_on else 1 - qg, 1.0)
                 ok = np.ones((M, n), dtype=bool)
                 if f_on:
                     ok &= f_ok
@@ -148,16 +155,29 @@ def _chain_orders(roles: np.ndarray, into: np.ndarray, ids: np.ndarray, glob: np
     return chain, block
 
 
+@lru_cache(maxsize=512)
+def _block_pairs(nA: int, s: int, b: int, first_only: bool) -> tuple[np.ndarray, np.ndarray, int]:
+    """For every set S of size s: its submasks B of size b (holding min S if first_only) and S minus B, flat,
+    and how many each S has."""
+    S, B, R, per = _pairs(nA, s, b)
+    if not first_only:
+        return B, R, per
+    keep = (B & (S & -S)) != 0
+    return B[keep], R[keep], math.comb(s - 1, b - 1)
+
+
 def _submask_products(read: np.ndarray, writes: Sequence[np.ndarray], weights: Sequence[np.ndarray], nA: int,
                       first_only: bool, block_scale: list[float], block_shift: list[int],
-                      read_degree: list[int]) -> None:
+                      read_degree: list[int], weight_degree: list[int], read_width: list[int] | None = None) -> None:
     """writes[v][S] += sum over non-empty α within S (holding min S if first_only) of read[S \\ α] * weights[v][α].
 
     read and the writes (M, 2^nA, *mid, L) may be views of one table: level by level, a set reads only
-    smaller ones, so a recursion is written in place. α's polynomials (weights[v], (M, 2^nA, Lw)) are scaled
-    by block_scale[|α|] and shifted by block_shift[|α|] degrees; rows of read for sets of size r have
-    degree at most read_degree[r]. Products past degree L - 1 are dropped (the callers' L bounds every
-    formula's clause count, so they are zero). Several weights share one gather of read.
+    smaller ones, so a recursion is written in place. α's polynomials (weights[v], (M, 2^nA, Lw), of degree
+    at most weight_degree[|α|]) are scaled by block_scale[|α|] and shifted by block_shift[|α|] degrees; rows
+    of read for sets of size r have degree at most read_degree[r]. Products past degree L - 1 are dropped
+    (the callers' L bounds every formula's clause count, so they are zero). Several weights share one
+    gather of read. With one mid axis, read_width[r] (if given) says how many of its leading entries can be
+    non-zero for sets of size r (a set of r objects is cut into at most r chains).
     """
     M, L = read.shape[0], read.shape[-1]
     mid = read.shape[2:-1]
@@ -172,20 +192,18 @@ def _submask_products(read: np.ndarray, writes: Sequence[np.ndarray], weights: S
             shift = block_shift[b]
             if shift >= L or block_scale[b] == 0.0:
                 continue
-            S, B, R, per = _pairs(nA, s, b)
-            if first_only:
-                keep = (B & (S & -S)) != 0
-                B, R = B[keep], R[keep]
-                per = math.comb(s - 1, b - 1)
-            d_max = min(Lw, L - shift)
+            B, R, per = _block_pairs(nA, s, b, first_only)
+            d_max = min(Lw, L - shift, weight_degree[b] + 1)
             LR = min(L, read_degree[s - b] + 1)
+            wide = width if read_width is None else min(width, read_width[s - b])
             blk = np.concatenate([w[:, B, :d_max] for w in weights], axis=2) * block_scale[b]  # (M, pairs, V d)
-            rest = read[:, R, ..., :LR].reshape(M, sets.size, per, width * LR)
+            rest = read[:, R, ..., :LR] if read_width is None else read[:, R, :wide, :LR]
+            rest = rest.reshape(M, sets.size, per, wide * LR)
             prod = np.matmul(blk.reshape(M, sets.size, per, V * d_max).transpose(0, 1, 3, 2), rest)
-            prod = prod.reshape(M, sets.size, V, d_max, width, LR)
-            for d in range(d_max):
+            prod = prod.reshape(M, sets.size, V, d_max, wide, LR).transpose(3, 2, 0, 1, 4, 5)
+            for d in range(d_max):  # the product's coefficients: block degree d shifts the rest's up by d
                 top = min(LR, L - shift - d)
-                level[:, :, :, :, shift + d:shift + d + top] += np.moveaxis(prod[:, :, :, d, :, :top], 2, 0)
+                level[:, :, :, :wide, shift + d:shift + d + top] += prod[d, ..., :top]
         for v, write in enumerate(writes):
             write[:, sets] += level[v].reshape(M, sets.size, *mid, L)
 
@@ -203,10 +221,10 @@ def _poly_product_sum(x: np.ndarray, y: np.ndarray, length: int) -> np.ndarray:
 
 
 def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
-               tokens: TokenWeights | None = None) -> np.ndarray:
+               tokens: TokenWeights | None = None, forb: np.ndarray | None = None) -> np.ndarray:
     """Prior mass by clause count (and block count if by_blocks) of constraints whose antecedents lie in a_mask;
     with token weights, every formula also weighted by its similarity tokens' weights (rows of tokens: rows
-    of the batch)."""
+    of the batch); forb (M, n): which objects of each row may be forbidden, if not the vocabulary's."""
     voc = prior.vocabulary
     n, M, p = voc.n, len(batch), prior.p_new_block
     ids, glob = _local_masks(a_mask)
@@ -214,15 +232,16 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
     t_ids = [i for i in range(n) if not a_mask >> i & 1]
     nT = len(t_ids)
     if tokens is None:
-        last, ante = element_polys(prior, batch)
+        last, ante = element_polys(prior, batch, forb)
         roles = np.stack([last, ante])[:, None]  # with_g axis of one: the whole polynomial
         dtype = np.dtype(float)
     else:
-        roles = element_parts(prior, batch, tokens)
+        roles = element_parts(prior, batch, tokens, forb)
         dtype = roles.dtype
     e = 2 if roles[..., 2].any() else 1  # clauses an object brings besides its orders (F and G, or one)
     roles = roles[..., :e + 1]
     L = e * n + (nA + 1) * nA // 2 + 1
+    weight_degree = [e * b for b in range(nA + 1)]  # a chain or block of b objects: e clauses each at most
     chain, block = _chain_orders(roles, batch.into, ids, glob, tokens)
     last_all = roles[0].sum(axis=0)  # (M, n, e + 1)
     full = (1 << nA) - 1
@@ -233,7 +252,8 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
         block_scale = [0.0] + [p * (1 - p) ** (b - 1) for b in range(1, nA + 1)]
         block_shift = [0] + [b * (b - 1) // 2 for b in range(1, nA + 1)]
         degree = [e * r + r * (r - 1) // 2 for r in range(nA + 1)]
-        _submask_products(H[:, :, :-1], [H[:, :, 1:]], [block], nA, True, block_scale, block_shift, degree)  # j+1
+        _submask_products(H[:, :, :-1], [H[:, :, 1:]], [block], nA, True, block_scale, block_shift, degree,
+                          weight_degree, list(range(1, nA + 1)))  # j+1 chains from j, and j <= |S \ α|
     ks = nT + np.arange(nA + 1)
     scale = np.array([math.exp(math.lgamma(k + 1) - math.lgamma(n + 1)) for k in ks]) / p
     H = H * scale[None, None, :, None]
@@ -253,12 +273,12 @@ def group_mass(prior: ChainPrior, batch: Batch, a_mask: int, by_blocks: bool,
         tails = np.zeros_like(G)
         weights = _pair_weights(tokens, ids, zg, M)
         if weights is None:
-            _submask_products(G, [tails], [body], nA, False, tail_scale, tail_shift, degree)
+            _submask_products(G, [tails], [body], nA, False, tail_scale, tail_shift, degree, weight_degree)
             G = _times_element(p * last_all[:, zg, :], G) + _times_element(roles[0, 0, :, zg, :], tails)
             continue
         plain = np.zeros_like(G)  # a forbidden tail drops its order tokens
         _submask_products(G, [tails, plain], [body * weights[:, :, None], body], nA, False, tail_scale, tail_shift,
-                          degree)
+                          degree, weight_degree)
         G = (_times_element(p * last_all[:, zg, :], G) + _times_element(roles[0, 0, :, zg, :], tails)
              + _times_element(roles[0, 1, :, zg, :], plain))
     if by_blocks:
