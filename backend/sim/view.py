@@ -84,23 +84,57 @@ def fast_pose_writer(frame: viser.FrameHandle) -> Callable[[np.ndarray], None] |
     shown = [impl.position.tolist(), impl.wxyz.tolist()]  # the handle's arrays as lists: compared every frame
 
     def write(pose: np.ndarray) -> None:
-        values = pose.tolist()
-        position, wxyz = values[:3], values[3:]
-        if not _close(position, shown[0]):
-            impl.position[:] = position
-            shown[0] = position
-            queue(SetPositionMessage(name, tuple(position)))
-        if not _close(wxyz, shown[1]):
-            impl.wxyz[:] = wxyz
-            shown[1] = wxyz
-            queue(SetOrientationMessage(name, tuple(wxyz)))
+        moved, turned = write_pose(name, pose.tolist(), shown, queue)
+        if moved:
+            impl.position[:] = shown[0]
+        if turned:
+            impl.wxyz[:] = shown[1]
 
     return write
 
 
+def write_pose(name: str, values: list[Any], shown: list[list[float]],
+               queue: Callable[[Any], None]) -> tuple[bool, bool]:
+    """Queue the pose messages of a node whose browser has shown = [position, wxyz] (lists, replaced when sent), as
+    viser's setters do: a part np.allclose to what the browser has is not sent. Whether each part was sent."""
+    position, wxyz = values[:3], values[3:]
+    moved = not _close(position, shown[0])
+    if moved:
+        shown[0] = position
+        queue(SetPositionMessage(name, tuple(position)))
+    turned = not _close(wxyz, shown[1])
+    if turned:
+        shown[1] = wxyz
+        queue(SetOrientationMessage(name, tuple(wxyz)))
+    return moved, turned
+
+
+BodyIndex = tuple[np.ndarray, np.ndarray]  # positions in a pose list, and the mirror's rows of those bodies
+
+
+def body_index(cache: dict[tuple[str, ...], BodyIndex], rows: dict[str, int], bodies: Sequence[str]) -> BodyIndex:
+    """Which of these bodies a mirror holds, and their rows (kept in `cache`: the list is nearly always the same)."""
+    key = tuple(bodies)
+    index = cache.get(key)
+    if index is None:
+        pairs = [(i, rows[name]) for i, name in enumerate(key) if name in rows]
+        index = (np.array([i for i, _ in pairs], dtype=int), np.array([r for _, r in pairs], dtype=int))
+        cache[key] = index
+    return index
+
+
+def changed_poses(last: np.ndarray, index: BodyIndex, poses: np.ndarray) -> list[tuple[int, np.ndarray]]:
+    """(row, pose) of each body whose pose moved POSE_EPSILON or more from its row of `last`."""
+    given, rows = index
+    wanted = np.asarray(poses, dtype=float)[given]
+    changed = np.flatnonzero(np.max(np.abs(wanted - last[rows]), axis=1, initial=0.0) >= POSE_EPSILON)
+    return [(int(rows[k]), wanted[k]) for k in changed.tolist()]
+
+
 class BodyMirror:
-    """MuJoCo bodies mirrored into one viser scene (the server's, shared by all, or one client's own): a frame
-    per body, a child primitive per visible geom, and only changed poses pushed."""
+    """MuJoCo bodies mirrored into one viser scene (the view hub's shared one, a SceneView's, or the recorder that
+    client_scene's templates are made with): a frame per body, a child primitive per visible geom, and only changed
+    poses pushed."""
 
     def __init__(self, scene: viser.SceneApi, model: mujoco.MjModel, data: mujoco.MjData,
                  bodies: Iterable[str] | None = None) -> None:
@@ -117,7 +151,7 @@ class BodyMirror:
         self._last = np.array(last, dtype=float).reshape(len(last), 7)
         self._names = list(self.frames)
         self._writers = [fast_pose_writer(self.frames[name]) for name in self._names]
-        self._index_cache: dict[tuple[str, ...], tuple[np.ndarray, np.ndarray]] = {}
+        self._index_cache: dict[tuple[str, ...], BodyIndex] = {}
 
     def _add_body(self, model: mujoco.MjModel, data: mujoco.MjData, body: int) -> np.ndarray:
         """Add one body's frame, geoms and label; its pose now."""
@@ -142,17 +176,8 @@ class BodyMirror:
 
     def set_poses(self, bodies: Sequence[str], poses: np.ndarray) -> int:
         """Push (x, y, z, qw, qx, qy, qz) per body this mirror holds, skipping unchanged ones; how many were sent."""
-        key = tuple(bodies)
-        index = self._index_cache.get(key)
-        if index is None:
-            pairs = [(i, self._rows[name]) for i, name in enumerate(key) if name in self._rows]
-            index = (np.array([i for i, _ in pairs], dtype=int), np.array([r for _, r in pairs], dtype=int))
-            self._index_cache[key] = index
-        given, rows = index
-        wanted = np.asarray(poses, dtype=float)[given]
-        changed = np.flatnonzero(np.max(np.abs(wanted - self._last[rows]), axis=1, initial=0.0) >= POSE_EPSILON)
-        for k in changed.tolist():
-            row, pose = int(rows[k]), wanted[k]
+        changed = changed_poses(self._last, body_index(self._index_cache, self._rows, bodies), poses)
+        for row, pose in changed:
             write = self._writers[row]
             if write is not None:
                 write(pose)

@@ -1,19 +1,14 @@
 """One viser server per app process showing every participant's table: each browser is a viser client with a
-scene of its own (viser's per-client scene API), so an open view costs a few scene handles, not a server.
+scene of its own, so an open view costs a little state, not a server.
 
 The tables and their labels are in the server's shared scene (the same for everyone); the arm, the objects
-and the caption are in each client's own scene. A browser reaches the server only through the app's
-websocket proxy, which checks the participant's token and connects to `/<ticket>`: a one-time ticket that
-names the table. viser 1.1 gives a connection's request path only through its websocket server's live
-connections (`_live_connections`, a private attribute): `ticket_of` is the one place that reads it, and
-tests/sim/test_view_hub.py fails if a viser upgrade changes it (viser is pinned in constraints.txt).
+and the caption are in each client's own scene, written as viser's messages from a template made once per model
+(sim/client_scene.py) rather than through viser's scene handles. A browser reaches the server only through the
+app's websocket proxy, which checks the participant's token and connects to `/<ticket>`: a one-time ticket that
+names the table. What this relies on of viser's private code is in sim/viser_private.py.
 
-viser 1.1 also gives each client two zstd compressors (one per message producer, about 250 KiB of context each:
-two thirds of what an idle view cost). Every producer runs on the server's one event loop and compresses in one
-synchronous call, so `share_message_compressors` makes them share one compressor per thread and level; the same
-test fails if viser stops making them the way this expects.
-
-Clicks arrive on viser's threads; the hub hands them to `on_click(key, obj)`, which must only queue them.
+Clicks arrive on viser's event loop; the hub hands them to `on_click(key, obj)` on viser's executor, which must only
+queue them. `on_leave(key)` runs on viser's event loop and must not block.
 """
 
 from __future__ import annotations
@@ -23,17 +18,20 @@ import secrets
 import threading
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
-from typing import Any
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
 import viser
 
-from .view import BodyMirror, add_caption, add_table_labels, moving_bodies, prepare_server
+from .client_scene import ClientScene, SceneTemplate, template_key
+from .view import BodyMirror, add_table_labels, moving_bodies, prepare_server
+from .viser_private import (client_queue, let_sent_windows_go, on_scene_clicks, run_callback,
+                            share_message_compressors, ticket_of)
 
 log = logging.getLogger(__name__)
 TICKET_SECONDS = 60.0  # a ticket is used by the proxy within milliseconds of being issued
+TEMPLATES = 32  # scene templates kept (one per distinct scene: the dinner table's and each study's own)
 
 
 @dataclass
@@ -42,51 +40,7 @@ class ClientView:
 
     key: str
     client: viser.ClientHandle
-    mirror: BodyMirror
-    caption: viser.LabelHandle
-    clickable: set[str] = field(default_factory=set)
-
-
-def ticket_of(server: viser.ViserServer, client_id: int) -> str | None:
-    """The ticket in the request path of a connected client's websocket (None if viser does not say)."""
-    live = getattr(getattr(server, "_websock_server", None), "_live_connections", None)
-    connection = None if live is None else live.get(client_id)
-    request = getattr(connection, "request", None)
-    path = getattr(request, "path", None)
-    if not isinstance(path, str):
-        return None
-    return path.strip("/").partition("?")[0] or None
-
-
-class SharedCompressors:
-    """Stands in for the zstandard module inside viser's connection code: ZstdCompressor(level=L) gives one
-    compressor per thread and level; everything else is the module's own."""
-
-    def __init__(self, module: Any) -> None:
-        self.module = module
-        self._local = threading.local()
-        self.made = 0  # compressors made (one per thread and level that asked)
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(self.module, name)
-
-    def ZstdCompressor(self, level: int = 3, **options: Any) -> Any:  # noqa: N802 (the module's own name)
-        """The thread's compressor of this level (a fresh one when given other options)."""
-        if options:
-            return self.module.ZstdCompressor(level=level, **options)
-        cache: dict[int, Any] = self._local.__dict__.setdefault("compressors", {})
-        if level not in cache:
-            cache[level] = self.module.ZstdCompressor(level=level)
-            self.made += 1
-        return cache[level]
-
-
-def share_message_compressors() -> None:
-    """Make viser's per-client message producers share their zstd compressors (see the module's docstring)."""
-    from viser.infra import _infra
-
-    if not isinstance(_infra.zstandard, SharedCompressors):
-        setattr(_infra, "zstandard", SharedCompressors(_infra.zstandard))  # noqa: B010 (a module attribute)
+    scene: ClientScene
 
 
 class ViewHub:
@@ -105,7 +59,7 @@ class ViewHub:
         self._tickets: dict[str, tuple[str, float]] = {}
         self._views: dict[int, ClientView] = {}
         self._server: viser.ViserServer | None = None
-        self._rests: dict[int, tuple[mujoco.MjModel, mujoco.MjData]] = {}  # id(model) -> its rest pose
+        self._templates: dict[bytes, SceneTemplate] = {}  # template_key(model) -> its template
 
     @property
     def started(self) -> bool:
@@ -145,19 +99,18 @@ class ViewHub:
         targets = self._of(key)
         for view in targets:
             with view.client.atomic():
-                view.mirror.set_poses(bodies, poses)
+                view.scene.set_poses(bodies, poses)
         return len(targets)
 
     def set_caption(self, key: str, text: str) -> None:
         """The caption above this table in every browser showing it."""
         for view in self._of(key):
-            view.caption.text = text
-            view.caption.visible = bool(text)
+            view.scene.set_caption(text)
 
     def set_clickable(self, key: str, objects: frozenset[str]) -> None:
         """Exactly these objects report clicks in the browsers showing this table."""
         for view in self._of(key):
-            self._clickable(view, objects)
+            view.scene.set_clickable(objects)
 
     def drop(self, key: str) -> None:
         """Forget the table's tickets (its browsers stay until they disconnect; they show nothing new)."""
@@ -183,6 +136,7 @@ class ViewHub:
             if self._server is not None:
                 return self._server
             share_message_compressors()
+            let_sent_windows_go()
             server = viser.ViserServer(host="127.0.0.1", port=0, verbose=False)
             prepare_server(server, self._model)
             data = mujoco.MjData(self._model)
@@ -193,12 +147,15 @@ class ViewHub:
             add_table_labels(server.scene, self._model, data)
             server.on_client_connect(self._joined)
             server.on_client_disconnect(self._left)
+            on_scene_clicks(server, self._scene_clicked)
             self._server = server
             return server
 
     def _joined(self, client: viser.ClientHandle) -> None:
         server = self._server
-        ticket = None if server is None else ticket_of(server, client.client_id)
+        if server is None:
+            return
+        ticket = ticket_of(server, client.client_id)
         now = time.monotonic()
         with self._lock:
             entry = self._tickets.pop(ticket, None) if ticket else None
@@ -212,40 +169,48 @@ class ViewHub:
         # The shared scene holds what every table has (tables, the robot's pedestal); the client's own scene the
         # moving bodies of its table's model (the dinner objects, or the study's own).
         bodies, poses, caption_text, clickable, model = shown
+        template = self._template_of(model)
         with client.atomic():
-            mirror = BodyMirror(client.scene, model, self._rest_of(model), moving_bodies(model))
-            mirror.set_poses(bodies, poses)
-            caption = add_caption(client.scene)
-            caption.text, caption.visible = caption_text, bool(caption_text)
-        view = ClientView(key, client, mirror, caption)
-        self._clickable(view, clickable)
+            scene = ClientScene(template, client_queue(client))
+            scene.set_poses(bodies, poses)
+            scene.set_caption(caption_text)
+        scene.set_clickable(clickable)
         with self._lock:
             if self._server is None:
                 return
-            self._views[client.client_id] = view
+            self._views[client.client_id] = ClientView(key, client, scene)
+        if client.client_id not in server.get_clients():  # it left while joining: _left may have found nothing
+            self._forget(client)
+            return
         log.debug("viewer %s joined table %s", client.client_id, key)
 
-    def _rest_of(self, model: mujoco.MjModel) -> mujoco.MjData:
-        """The model's rest pose, made once per scene (every new view's bodies start there; read only)."""
+    def _template_of(self, model: mujoco.MjModel) -> SceneTemplate:
+        """The scene template of the model's scene, made on first use (a few milliseconds)."""
+        key = template_key(model)
         with self._lock:
-            entry = self._rests.get(id(model))
-            if entry is None:
-                data = mujoco.MjData(model)
-                mujoco.mj_forward(model, data)
-                entry = self._rests[id(model)] = (model, data)  # the model kept alive: its id stays its own
-            return entry[1]
+            template = self._templates.get(key)
+        if template is None:
+            template = SceneTemplate(model)
+            with self._lock:
+                while len(self._templates) >= TEMPLATES:
+                    self._templates.pop(next(iter(self._templates)))
+                template = self._templates.setdefault(key, template)
+        return template
 
-    def _left(self, client: viser.ClientHandle) -> None:
+    async def _left(self, client: viser.ClientHandle) -> None:
+        # async: viser runs it on its event loop, so closing many views at once starts no executor threads
+        self._forget(client)
+
+    def _forget(self, client: viser.ClientHandle) -> None:
         with self._lock:
             view = self._views.pop(client.client_id, None)
         if view is not None:
             self._on_leave(view.key)
 
-    def _clickable(self, view: ClientView, objects: frozenset[str]) -> None:
-        for obj in set(view.mirror.geoms) & (objects ^ view.clickable):
-            for handle in view.mirror.geoms[obj]:
-                if obj in objects:
-                    handle.on_click(lambda _event, key=view.key, name=obj: self._on_click(key, name))
-                else:
-                    handle.remove_click_callback("all")
-        view.clickable = set(objects) & set(view.mirror.geoms)
+    def _scene_clicked(self, client_id: int, node: str) -> None:
+        with self._lock:
+            view = self._views.get(client_id)
+            server = self._server
+        body = None if view is None else view.scene.clicked(node)
+        if view is not None and body is not None and server is not None:
+            run_callback(server, self._on_click, view.key, body)
