@@ -68,6 +68,9 @@ def cmd_serve(args: argparse.Namespace) -> None:
     protocol = LimitedHttpToolsProtocol.with_timeouts(settings.header_timeout_seconds, settings.body_timeout_seconds)
     uvicorn.run(app, host=settings.host, port=settings.port, log_level=args.log_level, access_log=False,
                 timeout_graceful_shutdown=5, http=protocol, timeout_keep_alive=settings.keep_alive_seconds,
+                # The one websocket is the 3D view's: viser's messages are zstd-compressed already (their meshes
+                # raw), and per-message deflate held about 50 KiB of zlib state per open view.
+                ws_per_message_deflate=False,
                 # Behind the proxy the client's address (for the wrong-key limit) comes from X-Forwarded-For.
                 proxy_headers=True, forwarded_allow_ips=settings.forwarded_allow_ips)
 
