@@ -27,6 +27,7 @@ import numpy as np
 from .belief import Belief
 from .clauses import Clause
 from .domain import Domain, get_domain
+from .enumerated_beliefs import noisy_belief_after
 from .exact.learner import SUPPORTED_STRUCTURES, posterior_after
 from .exact.mapping import map_formula
 from .exact.posterior import ExactPosterior
@@ -243,8 +244,6 @@ def belief_after(task: str, prior: str, flip_rate: float, data: Verdicts, path: 
     """The learner's belief after these (trace, acceptable, is_verdict) items, in order; ValueError names a
     setting the exact learner does not offer (``exact_problems``)."""
     if path_of(task, path) == "enumerating":
-        from .session import noisy_belief_after  # cached there (core.session routes its robot turns through here)
-
         return EnumeratedBelief(noisy_belief_after(task, prior, flip_rate, data))
     return exact_belief_after(task, prior, flip_rate, data)
 

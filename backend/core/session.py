@@ -22,7 +22,7 @@ import numpy as np
 
 from .belief import Belief, check_flip_rate
 from .domain import get_domain
-from .hypotheses import get_space
+from .enumerated_beliefs import Trace, Verdicts, belief_after, noisy_belief_after
 from .priors import DEFAULT_PRIOR, NAMED_PRIORS
 from .puns import CRITERIA
 from .learner_seam import robot_plan, robot_query
@@ -33,7 +33,6 @@ PHASES = ("practice", "demonstration", "query", "test", "done")
 StepKind = Literal["practice", "demonstration", "query", "test", "done"]
 SCHEMA_VERSION = 1
 
-Trace = tuple[frozenset[str], ...]
 
 
 class ProtocolError(ValueError):
@@ -191,31 +190,6 @@ def start(config: SessionConfig) -> SessionState:
 def _rng(config: SessionConfig, kind: str, index: int) -> np.random.Generator:
     """The seeded generator of one robot turn, independent of everything else that happened."""
     return np.random.default_rng([config.seed, PHASES.index(kind), index])  # type: ignore[arg-type]
-
-
-@lru_cache(maxsize=32)  # a 513,024-hypothesis belief is about 8 MB; the default prior's is 0.6 MB
-def belief_after(task: str, prior: str, data: tuple[tuple[Trace, bool], ...]) -> Belief:
-    """The belief after these labelled executions, in order (cached prefix by prefix)."""
-    if not data:
-        return Belief.prior(get_space(task, prior))
-    trace, acceptable = data[-1]
-    return belief_after(task, prior, data[:-1]).observe(trace, acceptable)
-
-
-Verdicts = tuple[tuple[Trace, bool, bool], ...]
-
-
-@lru_cache(maxsize=32)
-def noisy_belief_after(task: str, prior: str, flip_rate: float, data: Verdicts) -> Belief:
-    """The noise-aware learner's belief after (trace, acceptable, is_verdict) items, in order: verdicts
-    are flipped w.p. ``flip_rate``, demonstrations never (flip_rate 0 is ``belief_after``, same cache)."""
-    if flip_rate == 0.0:
-        return belief_after(task, prior, tuple((trace, acceptable) for trace, acceptable, _ in data))
-    if not data:
-        return Belief.prior(get_space(task, prior))
-    trace, acceptable, is_verdict = data[-1]
-    earlier = noisy_belief_after(task, prior, flip_rate, data[:-1])
-    return earlier.observe(trace, acceptable, flip_rate if is_verdict else 0.0)
 
 
 def learning_data(state: SessionState) -> tuple[tuple[Trace, bool], ...]:

@@ -1,7 +1,7 @@
 """The experimenter's analysis views: live participant table, one participant's history, learning curves, replays.
 
 Read-only: every function opens a read transaction, rebuilds beliefs with the learning core (the study's
-own learner, core.session.noisy_belief_after) and never writes. The learning curves follow the paper's user-study
+own learner, through core.learner_seam) and never writes. The learning curves follow the paper's user-study
 figure: the median expected similarity to the ground truth E_P[L(phi, phi*)] and the mean entropy of
 the belief after each learning step (step 0 is the prior, step k the belief after the k-th
 demonstration or assessed query).
