@@ -30,7 +30,7 @@ from ..core.exact.similarity import expected_similarity, truth_tokens
 from ..core.queries import rollout
 from ..core.session import PROTOCOLS
 from .settings import ExperimentSettings
-from .simulate import protocol_rows
+from .run_rows import protocol_rows
 
 
 @dataclass(frozen=True)

@@ -16,7 +16,6 @@ import json
 import time
 from functools import lru_cache
 from dataclasses import dataclass, replace
-from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -27,6 +26,8 @@ from ..core.hypotheses import HypothesisSpace, build_space, get_space
 from ..core.queries import Execution, active_query, information_gain_query, plan_execution, random_query
 from ..core.teachers import SimulatedTeacher, authors_ground_truth, sample_ground_truth
 from ..core.session import PROTOCOLS
+from .exact_run import simulate_exact_run
+from .run_rows import protocol_rows
 from .settings import ExperimentSettings
 
 COLUMNS = (
@@ -147,8 +148,6 @@ def _protocol_steps(
 def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
     """All rows of one run (every protocol, every n_query, every learning step), in sorted order."""
     if settings.exact_learner:
-        from .exact_run import simulate_exact_run
-
         return simulate_exact_run(settings, run)
     streams = np.random.SeedSequence([settings.seed, run]).spawn(4 + len(PROTOCOLS))
     truth_rng, demo_rng = np.random.default_rng(streams[0]), np.random.default_rng(streams[1])
@@ -181,20 +180,6 @@ def simulate_run(settings: ExperimentSettings, run: int) -> list[list[Any]]:
             settings, protocol, belief, teacher, settings.max_n_query, learner_rng, teacher_rng, truth, tester
         )
         rows.extend(protocol_rows(settings, run, protocol, truth_text, steps))
-    return rows
-
-
-def protocol_rows(settings: ExperimentSettings, run: int, protocol: str, truth_text: str,
-                  steps: Sequence[Any]) -> list[list]:
-    """runs.csv rows of one protocol's learning steps: for each n_query, the prefix of steps it covers."""
-    rows: list[list] = []
-    for n_query in settings.n_query:
-        for n_executions, step in enumerate(steps[: settings.n_demonstrations + n_query + 1]):
-            rows.append([
-                run, settings.seed, settings.domain, settings.prior, protocol, n_query, step.kind,
-                n_executions, step.entropy, step.similarity, step.map_similarity, step.map_formula,
-                truth_text, "" if step.test_success is None else step.test_success, step.seconds,
-            ])
     return rows
 
 
