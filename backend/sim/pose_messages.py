@@ -1,7 +1,7 @@
 """viser's two pose messages with a direct serialiser: what they put on the wire is what viser's own give.
 
 viser serialises a message by walking its type hints (about 4 us a message); a moving robot sends two per body
-and frame to every browser watching, so that walk was a fifth of viser's websocket thread. These subclasses keep
+and frame to every browser watching, so that walk was over a quarter of viser's websocket thread. These subclasses keep
 viser's class names (its redundancy keys and the page's message types depend on them) and build the same dict
 directly (about 0.2 us). tests/sim/test_pose_messages.py compares them with viser's serialiser."""
 
