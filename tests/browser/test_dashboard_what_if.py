@@ -1,42 +1,45 @@
-"""The dashboard's teacher-consistency flag and "what if" panel in Debian's Chromium: a perfect scripted teacher
-and one who flips every verdict complete a study; the live table flags what the API flags, and the participant's
-page replays their data through other learners, matching the API's numbers."""
+"""The dashboard's teacher-consistency flag and "what if" panel in Debian's Chromium: two perfect scripted
+teachers and one who flips every verdict complete a study; the live table flags what the API flags, and the
+participant's page replays their data through other learners, matching the API's numbers."""
 
 from __future__ import annotations
 
-from typing import Any
+from pathlib import Path
+from typing import Any, Iterator
 
 import httpx
 import pytest
 
-from tableteach.client import run_teacher
+from tableteach.services import participants as participants_service
 from tests.browser.accessibility import serious_violations
-from tests.web.conftest import (  # noqa: F401  (server_factory is a fixture used by name)
-    EXPERIMENTER_TOKEN,
-    open_study,
-    server_factory,
-    study_spec,
-)
+from tests.web.conftest import EXPERIMENTER_TOKEN, ServerProcess, in_process_app
+from tests.web.helpers import FixedSessionSeeds, make_study, teach
 
 EXP = {"Authorization": f"Bearer {EXPERIMENTER_TOKEN}"}
 
 
+@pytest.fixture
+def taught(tmp_path: Path) -> Iterator[tuple[ServerProcess, str, list[int]]]:
+    """A server on a study two perfect teachers and one who flips every verdict completed: taught in-process with
+    fixed session seeds (whether the flipping teacher is flagged depends on the seed), then served as a lab would."""
+    with pytest.MonkeyPatch.context() as patch, in_process_app(tmp_path) as client:
+        patch.setattr(participants_service, "secrets", FixedSessionSeeds())
+        study_id = make_study(client, ["active"], name="What-if study")
+        ids = teach(client, study_id)
+    server = ServerProcess(tmp_path / "app.db").start()
+    try:
+        yield server, study_id, ids
+    finally:
+        server.stop()
+
+
 @pytest.mark.browser
-def test_the_flag_and_what_if_in_the_dashboard(server_factory: Any, browser_page: Any) -> None:  # noqa: F811
-    server = server_factory()
-    study_id = open_study(server.url, study_spec(["active"], n_queries=2, n_tests=2, name="What-if study"))
-    runs = [run_teacher(server.url, study_id, ["task1"], noise=0.0, seed=4)]
-    # A teacher who flips every verdict is flagged only if a verdict of theirs had a low probability, which depends
-    # on the session's random seed (a misled learner may plan tests the truth rejects): up to five such teachers.
-    for seed in range(5, 10):
-        runs.append(run_teacher(server.url, study_id, ["task1"], noise=1.0, seed=seed))
-        live = httpx.get(f"{server.url}/api/v1/studies/{study_id}/live", headers=EXP).json()
-        flagged = {row["participant_id"]: row["consistency"]["flagged"] for row in live["participants"]}
-        if flagged[runs[-1].participant_id]:
-            break
-    assert all(r.completion_code for r in runs)
-    flipping = runs[-1].participant_id
-    assert flagged[flipping], "none of five teachers who flip every verdict was flagged"
+def test_the_flag_and_what_if_in_the_dashboard(taught: tuple[Any, str, list[int]], browser_page: Any) -> None:
+    server, study_id, ids = taught
+    live = httpx.get(f"{server.url}/api/v1/studies/{study_id}/live", headers=EXP).json()
+    flagged = {row["participant_id"]: row["consistency"]["flagged"] for row in live["participants"]}
+    flipping = ids[-1]
+    assert flagged == {ids[0]: False, ids[1]: False, flipping: True}
 
     page = browser_page
     page.set_viewport_size({"width": 1280, "height": 800})
@@ -44,10 +47,10 @@ def test_the_flag_and_what_if_in_the_dashboard(server_factory: Any, browser_page
     page.fill("#token", EXPERIMENTER_TOKEN)
     page.click("#token-login button[type=submit]")
     page.click("#studies a:has-text('What-if study')")
-    for run in runs:  # the live table's pill is the API's flag
-        row = page.locator(f"#participants tr[data-participant='{run.participant_id}']")
+    for pid in ids:  # the live table's pill is the API's flag
+        row = page.locator(f"#participants tr[data-participant='{pid}']")
         row.wait_for()
-        assert row.locator("[data-consistency=flagged]").count() == int(flagged[run.participant_id])
+        assert row.locator("[data-consistency=flagged]").count() == int(flagged[pid])
 
     history = httpx.get(f"{server.url}/api/v1/studies/{study_id}/participants/{flipping}/history", headers=EXP).json()
     consistency = history["tasks"][0]["consistency"]

@@ -6,9 +6,7 @@ from __future__ import annotations
 
 import csv
 import io
-import itertools
 import json
-import secrets
 import zipfile
 from pathlib import Path
 from typing import Any
@@ -16,42 +14,9 @@ from typing import Any
 import pytest
 
 from tableteach.cli import main
-from tableteach.client import ParticipantClient, run_teacher
-from tableteach.services import TASK_FORMULAS
 from tableteach.services import participants as participants_service
 
-from .helpers import EXP, make_study
-
-# (seed, teacher's flip probability): two perfect teachers, one who flips every verdict
-TEACHERS = ((0, 0.0), (1, 0.0), (2, 1.0))
-
-
-class FixedSessionSeeds:
-    """The secrets module for the participants service, but each new participant's session seed is the next of
-    a fixed sequence: the robot's queries and plans then do not vary from run to run."""
-
-    def __init__(self) -> None:
-        self._seeds = itertools.count(1000)
-
-    def randbelow(self, n: int) -> int:
-        return next(self._seeds) % n
-
-    def __getattr__(self, name: str) -> Any:
-        return getattr(secrets, name)
-
-
-def teach(client: Any, study_id: str) -> list[int]:
-    """The scripted teachers complete the study; their participant ids."""
-    ids = []
-    for seed, noise in TEACHERS:
-        api = ParticipantClient("http://testserver")
-        api.http = client  # the in-process app speaks the same HTTP
-        run = run_teacher("http://testserver", study_id, [TASK_FORMULAS["task1"]], noise=noise, seed=seed,
-                          client=api, poll_seconds=0.0, timeout=120)
-        assert run.completion_code
-        ids.append(run.participant_id)
-    return ids
-
+from .helpers import EXP, FixedSessionSeeds, make_study, teach
 
 @pytest.fixture(scope="module")
 def studies(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Any]:
