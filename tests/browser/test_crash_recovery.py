@@ -4,18 +4,16 @@ acknowledged and maybe not yet reported by the robot) and started again; the pag
 
 from __future__ import annotations
 
-import io
-import time
 from pathlib import Path
 
 import httpx
 import numpy as np
 import pytest
-from PIL import Image
 
 from tests.web.conftest import ServerProcess, open_study, study_spec
 
 from joining import join_and_begin
+from view_pixels import settled_view
 
 pytestmark = pytest.mark.browser
 WAIT_MS = 120_000
@@ -41,32 +39,6 @@ class RestartableServer(ServerProcess):
             conftest.free_port = chosen
 
 
-def _view_pixels(page) -> np.ndarray:
-    """The 3D view as grey pixels (the embedded viewer frame only)."""
-    frame = page.locator("#viewer-frame")
-    frame.wait_for(state="visible", timeout=WAIT_MS)
-    frame.scroll_into_view_if_needed(timeout=WAIT_MS)
-    page.wait_for_function("() => { const r = document.querySelector('#viewer-frame')?.getBoundingClientRect();"
-                           " return r && r.width > 10 && r.height > 10; }", timeout=WAIT_MS)
-    box = frame.bounding_box()
-    assert box is not None, "the page shows no 3D view"
-    shot = page.screenshot(clip=box, animations="disabled", timeout=WAIT_MS)
-    return np.asarray(Image.open(io.BytesIO(shot)).convert("L"), dtype=float)
-
-
-def _settled_view(page, seconds: float = 4.0) -> np.ndarray:
-    """The view once it has stopped changing (software WebGL draws slowly)."""
-    last = _view_pixels(page)
-    deadline = time.monotonic() + 90
-    while time.monotonic() < deadline:
-        time.sleep(seconds)
-        now = _view_pixels(page)
-        if now.shape == last.shape and np.abs(now - last).mean() < 0.5:
-            return now
-        last = now
-    return last
-
-
 def test_the_page_recovers_from_a_kill_and_its_view_agrees_with_its_panel(browser_page, tmp_path: Path) -> None:
     page = browser_page
     server = RestartableServer(tmp_path / "crash.db", TABLETEACH_ROBOT="mujoco", TABLETEACH_ROBOT_SPEED="4",
@@ -80,7 +52,7 @@ def test_the_page_recovers_from_a_kill_and_its_view_agrees_with_its_panel(browse
                                                      n_tests=0))
         token = join_and_begin(page, server.url, study_id, "crash-1", query="&STUDY_ID=s1&SESSION_ID=x1")
         page.wait_for_selector("#viewer-frame", timeout=WAIT_MS)
-        empty = _settled_view(page)
+        empty = settled_view(page)
 
         page.locator('button.object[data-object="dinner_plate"]').click()
         page.wait_for_function(PLACED, arg="dinner plate", timeout=WAIT_MS)
@@ -96,12 +68,12 @@ def test_the_page_recovers_from_a_kill_and_its_view_agrees_with_its_panel(browse
         assert "dinner plate" in placed and "bowl" in placed
         state = httpx.get(f"{server.url}/api/v1/me", headers={"Authorization": f"Bearer {token}"}, timeout=60).json()
         assert state["demonstration"]["placed"] == ["dinner_plate", "bowl"] and state["demonstration"]["settled"]
-        after = _settled_view(page)
+        after = settled_view(page)
 
         # The same scene rebuilt: a fresh table with the two objects placed, as a view of the stored placements.
         page.reload()
         page.wait_for_selector("#finish:not([disabled])", timeout=WAIT_MS)
-        reloaded = _settled_view(page)
+        reloaded = settled_view(page)
         assert after.shape == reloaded.shape == empty.shape
         same = np.abs(after - reloaded).mean()
         moved = np.abs(empty - reloaded).mean()
