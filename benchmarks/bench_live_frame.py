@@ -1,14 +1,14 @@
-"""CPU of one live 3D-view frame on the server: a browser's scene's pose comparison and queueing, and viser's
-serialisation of the queued messages, per browser watching a moving table.
+"""CPU of showing one placement live on the server, per browser watching: the motion sent once (the client scene's
+play(), sim/motion_message.py) against the 30 frames a second it replaced (set_poses per frame), each with viser's
+serialisation and compression of what was queued.
 
     .venv/bin/python benchmarks/bench_live_frame.py [--repeats 20]
 
-Replays a recorded placement (the bowl, the MuJoCo world as the robot simulates it) through a browser's ClientScene
-(sim/client_scene.py, as the view hub makes it), frame by frame as the animator shows it, with the messages
-stamped with the browser's owner and collected instead of sent; then
-serialises them as viser's websocket thread does (each message's dict, one msgpack per frame). Prints the
-medians over the repeats in microseconds per frame, and the messages per frame. The live view streams 30 frames
-a second to each browser watching a moving table, so 1,000 us per frame is 3% of a core per such browser.
+Replays a placement of the bowl (the MuJoCo world as the robot simulates it) through a browser's ClientScene
+(sim/client_scene.py, as the view hub makes it), with the messages stamped with the browser's owner and collected
+instead of sent, then serialises them as viser's websocket thread does (each message's dict, one msgpack per
+window, zstd level 1). Each repeat builds a new scene and a new compressor: nothing is reused between repeats.
+Prints the medians over the repeats in microseconds per placement, the bytes on the wire and the ratio.
 """
 
 from __future__ import annotations
@@ -18,6 +18,7 @@ import statistics
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
@@ -29,40 +30,58 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=20)
     args = parser.parse_args()
     import msgspec
+    import zstandard
 
     from backend.sim.client_scene import ClientScene, SceneTemplate
     from backend.sim.physics import MujocoWorld
 
     world = MujocoWorld(seed=0)
+    start = len(world.recording) - 1
     world.place("bowl")
-    rec = world.recording
+    segment = world.recording.since(start)
     template = SceneTemplate(world.model)
-    mirror_us, serialise_us, per_frame = [], [], []
-    for _ in range(args.repeats):
-        sink: list[object] = []
+    times = segment.times - segment.times[0]
 
-        def stamped(message: object, sink: list[object] = sink) -> None:
-            message.owner = "1"  # type: ignore[attr-defined]  # as the client's scene API stamps it
-            sink.append(message)
-
-        scene = ClientScene(template, stamped)
-        sink.clear()
-        frames: list[list[object]] = []
-        started = time.process_time()
-        for frame in range(len(rec)):
-            scene.set_poses(rec.bodies, rec.poses[frame])
-            frames.append(sink[:])
-            sink.clear()
-        mirror_us.append(1e6 * (time.process_time() - started) / len(rec))
-        started = time.process_time()
-        for messages in frames:
+    def wire(windows: list[list[Any]]) -> int:
+        compressor = zstandard.ZstdCompressor(level=1)
+        size = 0
+        for messages in windows:
             buffers: list[memoryview] = []
-            msgspec.msgpack.encode({"messages": tuple(m.as_serializable_dict(buffers) for m in messages)})  # type: ignore[attr-defined]
-        serialise_us.append(1e6 * (time.process_time() - started) / len(rec))
-        per_frame.append(sum(len(m) for m in frames) / len(frames))
-    print(f"{len(rec)} frames of a placement, {statistics.median(per_frame):.1f} pose messages per frame")
-    print(f"client scene (compare and queue): median {statistics.median(mirror_us):.1f} us per frame")
-    print(f"serialise (viser's websocket thread's part): median {statistics.median(serialise_us):.1f} us per frame")
+            inner = msgspec.msgpack.encode({"messages": tuple(m.as_serializable_dict(buffers) for m in messages)})
+            size += len(compressor.compress(inner))
+        return size
+
+    results: dict[str, list[tuple[float, int, int]]] = {"sent once": [], "streamed": []}
+    for _ in range(args.repeats):
+        for how in results:
+            sink: list[Any] = []
+
+            def stamped(message: Any, sink: list[Any] = sink) -> None:
+                message.owner = "1"  # as the client's scene API stamps it
+                sink.append(message)
+
+            scene = ClientScene(template, stamped)
+            scene.set_poses(segment.bodies, segment.poses[0])
+            sink.clear()
+            started = time.process_time()
+            if how == "sent once":
+                scene.play(segment.bodies, times, segment.poses)
+                windows = [sink[:]]
+            else:
+                windows = []
+                for frame in range(len(segment)):
+                    scene.set_poses(segment.bodies, segment.poses[frame])
+                    windows.append(sink[:])
+                    sink.clear()
+            size = wire(windows)
+            results[how].append((1e6 * (time.process_time() - started), size, sum(len(w) for w in windows)))
+    print(f"a placement of {len(segment)} frames ({segment.duration:.1f} s), per browser watching; "
+          f"medians of {args.repeats}")
+    for how, runs in results.items():
+        print(f"{how}: {statistics.median(r[0] for r in runs):.0f} us of CPU, "
+              f"{statistics.median(r[1] for r in runs) / 1024:.1f} KiB on the wire, {runs[0][2]} messages")
+    ratio = statistics.median(r[0] for r in results["streamed"]) / statistics.median(r[0] for r in results["sent once"])
+    print(f"sending the motion once costs 1/{ratio:.0f} of streaming it")
 
 
 if __name__ == "__main__":

@@ -19,7 +19,9 @@ import mujoco
 import numpy as np
 from viser import _messages as viser_messages
 
-from .view import CAPTION_NODE, BodyIndex, BodyMirror, add_caption, body_index, changed_poses, moving_bodies, write_pose
+from .motion_message import motion_message
+from .view import (CAPTION_NODE, POSE_EPSILON, BodyIndex, BodyMirror, add_caption, body_index, changed_poses,
+                   moving_bodies, write_pose)
 from .viser_private import RecordingScene
 
 # What a scene handle's on_click(callback) publishes: a plain left click.
@@ -88,6 +90,24 @@ class ClientScene:
             write_pose(self.template.frames[row], pose.tolist(), self._shown[row], self._queue)
             self._last[row] = pose
         return len(changed)
+
+    def play(self, bodies: Sequence[str], times: np.ndarray, poses: np.ndarray) -> int:
+        """Queue a motion for the browser to play on its own clock: poses (frames, bodies, 7) at times (seconds from
+        its start); only bodies that move from what the browser has are sent. The browser ends on the last frame,
+        so that is what this scene has from now on. How many bodies move."""
+        given, rows = self.template.index(bodies)
+        wanted = np.asarray(poses, dtype=float)[:, given]
+        moving = np.flatnonzero(np.max(np.abs(wanted - self._last[rows]), axis=(0, 2), initial=0.0) >= POSE_EPSILON)
+        if not len(moving):
+            return 0
+        moved = rows[moving]
+        self._queue(motion_message(tuple(self.template.frames[row] for row in moved.tolist()), times,
+                                   wanted[:, moving]))
+        final = wanted[-1, moving]
+        self._last[moved] = final
+        for row, pose in zip(moved.tolist(), final.astype(np.float32).astype(float).tolist(), strict=True):
+            self._shown[row] = [pose[:3], pose[3:]]  # as the browser has it (float32)
+        return len(moving)
 
     def set_caption(self, text: str) -> None:
         """The one-line status above the tables (hidden while empty)."""

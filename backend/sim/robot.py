@@ -48,7 +48,6 @@ from .worker_pool import ExecutionWorkers, WorkerFailed
 log = logging.getLogger(__name__)
 
 Labels = frozenset[str]
-FRAME_SECONDS = 1 / 30  # the animator's pace: 30 frames a second to the browsers watching a moving table
 IDLE_WORLD_SECONDS = 120.0  # a table unused this long frees its simulation (rebuilt from the stored placements)
 REAP_EVERY_SECONDS = 5.0
 
@@ -74,12 +73,12 @@ def warm_tables(data_dir: Path | str, tasks: Sequence[int]) -> dict[str, int]:
 
 @dataclass
 class _Motion:
-    """A placement's recorded frames being shown: caption, frames, and when the showing started."""
+    """A placement's recorded frames being shown: caption, frames, and when the showing started and ends."""
 
     caption: str
     segment: Recording
     started: float = 0.0
-    shown: int = -1  # the frame last shown (the animator shows each frame once, however often it wakes)
+    ends: float = 0.0
 
 
 class _Table:
@@ -510,31 +509,29 @@ class MujocoRobot:
             log.exception("change notice for table %s failed", table.key)
 
     def _animate_loop(self) -> None:
-        """The animator: every FRAME_SECONDS, show each moving table's current frame to its browsers; now and
-        then, free the simulations of tables left idle."""
+        """The animator: starts each moving table's next motion (sent once to its browsers, which play it on their
+        own clock), ends it when its time is up; now and then frees the simulations of tables left idle."""
         reaped = time.monotonic()
-        due = 0.0  # when the next frame is due: frames keep their pace however long showing one took
         while not self._closing.is_set():
-            if time.monotonic() - reaped > REAP_EVERY_SECONDS:
+            self._animate.clear()  # a motion queued from here on wakes the wait below
+            now = time.monotonic()
+            if now - reaped > REAP_EVERY_SECONDS:
                 self._reap_idle()
-                reaped = time.monotonic()
+                reaped = now
             with self._lock:
                 moving = [t for t in self._tables.values() if t.pending]
-            if not moving:
-                self._animate.wait(REAP_EVERY_SECONDS)
-                self._animate.clear()
-                due = 0.0
-                continue
-            now = time.monotonic()
-            due = max(due + FRAME_SECONDS, now)  # a frame late is shown now, not made up for with a burst
+            wake = now + REAP_EVERY_SECONDS
             for table in moving:
                 try:
-                    self._advance(table, now)
+                    due = self._advance(table, now)
                 except Exception:  # noqa: BLE001 - one table's failure must not freeze the others
                     log.exception("robot %s failed while moving", table.key)
                     with table.lock:
                         table.pending.clear()
-            self._closing.wait(max(0.0, due + FRAME_SECONDS - time.monotonic()))
+                    continue
+                if due is not None:
+                    wake = min(wake, due)
+            self._animate.wait(max(0.0, wake - time.monotonic()))
 
     def _reap_idle(self) -> None:
         """Free the worlds of tables unused for idle_seconds (the stored placements rebuild them when needed)."""
@@ -548,35 +545,30 @@ class MujocoRobot:
                     log.debug("freeing the idle simulation of table %s", table.key)
                     table.drop_world()
 
-    def _advance(self, table: _Table, now: float) -> None:
-        """Show the frame due now of the table's current motion; at its end, the next motion (or stillness)."""
+    def _advance(self, table: _Table, now: float) -> float | None:
+        """Start the table's current motion (its browsers are sent it to play) or, its time up, end it and show its
+        last frame; when the animator should look at the table again (None: nothing is moving)."""
         hub = self._hub
-        ended = False
         with table.lock:
             if not table.pending:
-                return
+                return None
             motion = table.pending[0]
-            if motion.started == 0.0:
-                motion.started = now
+            segment = motion.segment
+            first = motion.started == 0.0
+            if first:
+                rate = self.speed * table.speed
+                motion.started, motion.ends = now, now + segment.duration / rate
                 if hub is not None:
                     hub.set_caption(table.key, motion.caption)
-                first = True
-            else:
-                first = False
-            segment = motion.segment
-            elapsed = (now - motion.started) * self.speed * table.speed
-            times = segment.times - segment.times[0]
-            frame = int(np.searchsorted(times, elapsed, side="right")) - 1
-            if frame >= len(segment) - 1 or hub is None or hub.watchers(table.key) == 0:
-                frame, ended = len(segment) - 1, True
-            frame = max(0, frame)
-            if hub is not None and frame != motion.shown:
-                hub.show(table.key, segment.bodies, segment.poses[frame])
-                motion.shown = frame
+                    hub.play(table.key, segment.bodies, (segment.times - segment.times[0]) / rate, segment.poses)
+            ended = now >= motion.ends or hub is None or hub.watchers(table.key) == 0
             if ended:
                 table.pending.popleft()
-                if hub is not None:
+                if hub is not None:  # browsers that joined during the motion have not seen it end
+                    hub.show(table.key, segment.bodies, segment.poses[-1])
                     hub.set_caption(table.key, table.caption)
+            due = now if table.pending and ended else (None if ended else motion.ends)
         if first or ended:
             self._refresh(table)
             self._changed(table)
+        return due

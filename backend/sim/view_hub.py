@@ -102,6 +102,14 @@ class ViewHub:
                 view.scene.set_poses(bodies, poses)
         return len(targets)
 
+    def play(self, key: str, bodies: Sequence[str], times: np.ndarray, poses: np.ndarray) -> int:
+        """Send every browser showing this table a motion to play on its own clock (poses (frames, bodies, 7) at
+        times in seconds from now); how many browsers."""
+        targets = self._of(key)
+        for view in targets:
+            view.scene.play(bodies, times, poses)
+        return len(targets)
+
     def set_caption(self, key: str, text: str) -> None:
         """The caption above this table in every browser showing it."""
         for view in self._of(key):

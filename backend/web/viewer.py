@@ -91,23 +91,33 @@ PARTICIPANT_CLIENT_HEAD = b"""<style id="tableteach-participant">
 </style>"""
 
 
-@lru_cache(maxsize=1)
-def pacing_script() -> bytes:
-    """frontend/viewer-pacing.js as an inline script: it must run before viser's own (which it paces)."""
-    code = (FRONTEND / "viewer-pacing.js").read_bytes()
+# Scripts that must run before viser's own: its frame pacing, and the player of the placement motions the server
+# sends once (sim/motion_message.py).
+VIEWER_SCRIPTS = (("viewer-pacing.js", "tableteach-pacing"), ("viewer-motion.js", "tableteach-motion"))
+
+
+def inline_script(file: str, element_id: str) -> bytes:
+    """A frontend script as an inline <script> (ValueError if its text would end the element early)."""
+    code = (FRONTEND / file).read_bytes()
     if b"</" in code:
-        raise ValueError("viewer-pacing.js contains '</': it would end its inline <script> early")
-    return b'<script id="tableteach-pacing">' + code + b"</script>"
+        raise ValueError(f"{file} contains '</': it would end its inline <script> early")
+    return f'<script id="{element_id}">'.encode() + code + b"</script>"
+
+
+@lru_cache(maxsize=1)
+def viewer_scripts() -> bytes:
+    """The viewer page's own scripts, inline, in the order they run."""
+    return b"".join(inline_script(file, element_id) for file, element_id in VIEWER_SCRIPTS)
 
 
 def participant_client_html(raw: bytes) -> bytes:
-    """Viser's client page with the participant's style sheet and frame pacing first in its head (ValueError
-    without a <head>)."""
+    """Viser's client page with the participant's style sheet, frame pacing and motion player first in its head
+    (ValueError without a <head>)."""
     at = raw.find(b"<head>")
     if at < 0:
         raise ValueError("viser's client page has no <head>: expected the built index.html of viser 1.1")
     at += len(b"<head>")
-    return raw[:at] + PARTICIPANT_CLIENT_HEAD + pacing_script() + raw[at:]
+    return raw[:at] + PARTICIPANT_CLIENT_HEAD + viewer_scripts() + raw[at:]
 
 
 @lru_cache(maxsize=1)

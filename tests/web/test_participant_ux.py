@@ -123,12 +123,15 @@ def test_watch_again_needs_a_finished_execution(app_client) -> None:
     assert r.status_code == 409 and "no 3D view" in r.json()["detail"]  # the trace robot has no recorded motion
 
 
-def test_the_participant_copy_of_the_viewer_hides_its_controls_and_paces_its_frames() -> None:
+def test_the_participant_copy_of_the_viewer_hides_its_controls_paces_its_frames_and_plays_motions() -> None:
     page = participant_client_html(b"<html><head><title>v</title><script>viser()</script></head><body></body></html>")
     assert b".mantine-Paper-root" in page and page.index(b"tableteach-participant") < page.index(b"<title>")
     # The pacing script runs before viser's own, which it paces (it wraps requestAnimationFrame and setInterval).
     assert page.index(b'<script id="tableteach-pacing">') < page.index(b"<script>viser()")
     assert b"window.requestAnimationFrame =" in page
+    # The motion player wraps the Worker that viser's websocket runs in, so it too runs first.
+    assert page.index(b'<script id="tableteach-motion">') < page.index(b"<script>viser()")
+    assert b"window.Worker = class extends NativeWorker" in page
     with pytest.raises(ValueError, match="<head>"):
         participant_client_html(b"<html><body></body></html>")
 
