@@ -19,8 +19,9 @@ as the sticky reverse proxy (deploy/nginx.conf) would route them. Each participa
 
 Targets (exit status 0 only if all hold): every REST action's p99 under 200 ms, 0 errors, every session
 completed, every watched execution at 25 fps or more with no stall over 0.5 s (transfer or frame gap), and every
-placement's motion in the live view at 25 fps or more, arriving within 0.5 s of the click (the server sends it
-once and the page plays it on its own clock: a motion that has arrived does not stall).
+placement's motion in the live view at 25 fps or more with no frame gap over 0.5 s (the server sends a motion once
+and the page plays it on its own clock). The waits for the robot (from the start click to an execution's recording,
+from a placement's click to its motion) are printed, not judged.
 
 It prints progress every few seconds, then p50/p99 per action, CPU seconds per app process and per
 participant, the database's CPU and transactions, and last:
@@ -219,7 +220,8 @@ class Results:
 
     def live(self, clicks: list[float], motions: list[tuple[float, dict[str, Any]]]) -> None:
         """A demonstration's live view: each placement's motion as the page receives it (once, then played on the
-        page's clock): its frame rate, and the wait from the click to its arrival or its largest frame gap."""
+        page's clock): its frame rate, its largest frame gap, and the wait from the click to its arrival (printed, not
+        judged, as the wait for an execution's recording is not: the robot works the placement out first)."""
         for arrived, motion in motions:
             times = np.frombuffer(motion["times"], dtype="<f4").astype(float)
             span = float(times[-1] - times[0]) if len(times) > 1 else 0.0
@@ -227,7 +229,7 @@ class Results:
             wait = arrived - before[-1] if before else 0.0
             gap = float(np.diff(times).max()) if len(times) > 1 else 0.0
             self.live_motions.append({"fps": (len(times) - 1) / span if span > 0 else 0.0,
-                                      "max_gap": max(wait, gap), "wait": wait})
+                                      "max_gap": gap, "wait": wait})
 
     def rest_latencies(self) -> np.ndarray:
         """Every REST action's latency (the recording download, which waits for the robot, is not one)."""
