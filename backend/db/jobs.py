@@ -8,6 +8,7 @@ Like the other repository functions these flush but never commit.
 
 from __future__ import annotations
 
+from collections.abc import Collection
 from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
@@ -37,13 +38,17 @@ def add_job(session: Session, *, kind: str, participant_id: int, task_index: int
                        due_at=due_at or utcnow(), attempts=0))
 
 
-def claim_jobs(session: Session, *, owner: str, lease_seconds: float, limit: int,
-               now: datetime | None = None) -> list[ClaimedJob]:
-    """Take up to `limit` due jobs that nobody holds (or whose holder's lease ran out), oldest due first."""
+def claim_jobs(session: Session, *, owner: str, lease_seconds: float, limit: int, now: datetime | None = None,
+               kinds: Collection[str] | None = None, first: Collection[str] = ()) -> list[ClaimedJob]:
+    """Take up to `limit` due jobs that nobody holds (or whose holder's lease ran out): of these kinds (None: any),
+    the kinds in `first` before the others, then oldest due first."""
     now = now or utcnow()
-    query = (select(JobRow).where(JobRow.due_at <= now,
-                                  or_(JobRow.claimed_until.is_(None), JobRow.claimed_until < now))
-             .order_by(JobRow.due_at, JobRow.id).limit(limit))
+    query = select(JobRow).where(JobRow.due_at <= now, or_(JobRow.claimed_until.is_(None), JobRow.claimed_until < now))
+    if kinds is not None:
+        query = query.where(JobRow.kind.in_(sorted(kinds)))
+    if first:
+        query = query.order_by(case((JobRow.kind.in_(sorted(first)), 0), else_=1))
+    query = query.order_by(JobRow.due_at, JobRow.id).limit(limit)
     if session.get_bind().dialect.name != "sqlite":
         query = query.with_for_update(skip_locked=True)
     rows = list(session.execute(query).scalars())
@@ -76,10 +81,13 @@ _CLAIMABLE_AT = case((and_(JobRow.claimed_until.is_not(None), JobRow.claimed_unt
                       JobRow.claimed_until), else_=JobRow.due_at)
 
 
-def next_claimable(session: Session) -> datetime | None:
-    """When the earliest job can next be claimed (due, and its holder's lease, if any, run out); None without jobs.
-    A read: a runner asks this before it takes the write lock to claim."""
-    return session.execute(select(func.min(_CLAIMABLE_AT))).scalar_one_or_none()
+def next_claimable(session: Session, kinds: Collection[str] | None = None) -> datetime | None:
+    """When the earliest job (of these kinds; None: any) can next be claimed (due, and its holder's lease, if any,
+    run out); None without such jobs. A read: a runner asks this before it takes the write lock to claim."""
+    query = select(func.min(_CLAIMABLE_AT))
+    if kinds is not None:
+        query = query.where(JobRow.kind.in_(sorted(kinds)))
+    return session.execute(query).scalar_one_or_none()
 
 
 def pending_jobs(session: Session, *, participant_id: int | None = None) -> list[JobRow]:

@@ -50,11 +50,12 @@ class TabLeases:
                 del self._holders[participant_id]
 
 
-def default_runtime() -> Runtime:
-    """A runtime with every background job's handler (services.background)."""
+def default_runtime(robot_workers: int = 1) -> Runtime:
+    """A runtime with every background job's handler (services.background), and a runner of every kind per robot
+    worker (the slow jobs wait for one)."""
     from .background import HANDLERS  # background builds on the actions, which build on this module
 
-    return Runtime(HANDLERS)
+    return Runtime(HANDLERS, slow_runners=max(1, robot_workers))
 
 
 @dataclass
@@ -109,7 +110,8 @@ class Context:
             robot = TraceRobot("dinner", settings.robot_seconds_per_object)
         db = Database(settings.database_url, busy_seconds=settings.database_busy_seconds)
         store = recordings(db) if callable(recordings) else recordings
-        return Context(db, robot, settings, notifier=make_notifier(settings.database_url), recordings=store)
+        return Context(db, robot, settings, notifier=make_notifier(settings.database_url), recordings=store,
+                       runtime=default_runtime(settings.robot_workers))
 
 
 def aware(value: datetime | None) -> datetime | None:

@@ -1,10 +1,11 @@
 """The study server's runtime: the one owner of every thread of an app process (docs/concurrency.md).
 
-- Job runners (JOB_THREADS threads) carry out durable background work (services.background): a job is a
-  row written in the same transaction as the participant's action, claimed here with a lease, done by a
-  handler that is safe to run twice, deleted when done, retried with capped exponential backoff when it
-  fails (a busy database, a robot that failed), and found again after any restart (a lease that ran out
-  is free; on SQLite, the only process there, a starting process frees its predecessor's claims).
+- Job runners (JOB_THREADS threads, or one more than the robot's workers; all but the first `slow_runners`
+  take only QUICK_KINDS) carry out durable background work (services.background): a job is a row written in
+  the same transaction as the participant's action, claimed here with a lease, done by a handler that is safe
+  to run twice, deleted when done, retried with capped exponential backoff when it fails (a busy database, a
+  robot that failed), and found again after any restart (a lease that ran out is free; on SQLite, the only
+  process there, a starting process frees its predecessor's claims).
 - The scheduler (one thread) runs short timed calls: change notices at an execution's stored action
   ends, and the periodic time-out sweep.
 - The action queue (ACTION_THREADS threads) runs participant actions that arrive on a library's callback
@@ -56,6 +57,11 @@ Handler = Callable[["Context", job_rows.ClaimedJob], None]
 
 # The kinds of background job (services.background has their handlers).
 SETTLE, WORK_OUT, FINISH_EXECUTION, PLAN_AHEAD = "settle", "work_out", "finish_execution", "plan_ahead"
+# Jobs a participant is waiting on that take milliseconds (a placement's labels, an execution's end). The others
+# may wait seconds for a robot worker: the first runner takes every kind (these first), the other runners only
+# these, so a placement never waits behind executions being worked out. (With W robot workers, the first W runners
+# take every kind: Runtime's slow_runners.)
+QUICK_KINDS = frozenset({SETTLE, FINISH_EXECUTION})
 
 
 def backoff(attempts: int) -> float:
@@ -113,11 +119,14 @@ class Scheduler:
 class Runtime:
     """Starts, feeds and stops the app process's threads: job runners, the scheduler and the action queue."""
 
-    def __init__(self, handlers: dict[str, Handler], *, job_threads: int = JOB_THREADS,
+    def __init__(self, handlers: dict[str, Handler], *, job_threads: int = JOB_THREADS, slow_runners: int = 1,
                  poll_seconds: float = POLL_SECONDS, lease_seconds: float = LEASE_SECONDS,
                  sweep_seconds: float = 15.0) -> None:
+        if not 1 <= slow_runners:
+            raise ValueError(f"slow_runners {slow_runners} is below 1: expected at least one runner of every kind")
         self.handlers = handlers
-        self.job_threads = job_threads
+        self.slow_runners = slow_runners  # runners that take every kind; the others take only QUICK_KINDS
+        self.job_threads = max(job_threads, slow_runners + 1)
         self.poll_seconds = poll_seconds
         self.lease_seconds = lease_seconds
         self.sweep_seconds = sweep_seconds
@@ -159,7 +168,8 @@ class Runtime:
         self._actions = ThreadPoolExecutor(max_workers=ACTION_THREADS, thread_name_prefix="runtime-action")
         self._learner = ThreadPoolExecutor(max_workers=LEARNER_THREADS, thread_name_prefix="runtime-learner")
         for i in range(self.job_threads):
-            thread = threading.Thread(target=self._run_jobs, name=f"runtime-jobs-{i}", daemon=True)
+            kinds = None if i < self.slow_runners else QUICK_KINDS
+            thread = threading.Thread(target=self._run_jobs, args=(kinds,), name=f"runtime-jobs-{i}", daemon=True)
             thread.start()
             self._threads.append(thread)
         if self.sweep_seconds > 0:
@@ -210,16 +220,16 @@ class Runtime:
         return self._run_batch()
 
     # -- job runners ---------------------------------------------------------------------------------
-    def _run_jobs(self) -> None:
+    def _run_jobs(self, kinds: frozenset[str] | None) -> None:
         while not self._stop.is_set():
             # A read first: claiming takes the write lock, which an idle runner should not take every second.
-            wait = self._until_claimable()
+            wait = self._until_claimable(kinds)
             if wait > 0:
                 self._wake.wait(wait)
                 self._wake.clear()
                 continue
             try:
-                ran = self._run_batch()
+                ran = self._run_batch(kinds)
             except TryLater:
                 ran = 0
                 self._stop.wait(backoff(2))  # the database is busy or gone: try again shortly
@@ -231,14 +241,15 @@ class Runtime:
                 self._wake.wait(0.05)
                 self._wake.clear()
 
-    def _until_claimable(self) -> float:
-        """Seconds until a stored job can be claimed (0: now), at most the poll interval (other processes' jobs)."""
+    def _until_claimable(self, kinds: frozenset[str] | None = None) -> float:
+        """Seconds until a stored job (of these kinds; None: any) can be claimed (0: now), at most the poll interval
+        (other processes' jobs)."""
         ctx = self._ctx
         if ctx is None:
             return self.poll_seconds
         try:
             with ctx.db.read() as s:
-                at = job_rows.next_claimable(s)
+                at = job_rows.next_claimable(s, kinds)
         except Exception:  # noqa: BLE001 - polling again later finds it
             return self.poll_seconds
         if at is None:
@@ -248,11 +259,12 @@ class Runtime:
         left = ((aware(at) or utcnow()) - utcnow()).total_seconds()
         return 0.0 if left <= 0 else min(self.poll_seconds, left)
 
-    def _run_batch(self) -> int:
+    def _run_batch(self, kinds: frozenset[str] | None = None) -> int:
         ctx = self._ctx
         assert ctx is not None, "the runtime has not started"
         with ctx.db.write() as s:
-            claimed = job_rows.claim_jobs(s, owner=self.owner, lease_seconds=self.lease_seconds, limit=CLAIM_BATCH)
+            claimed = job_rows.claim_jobs(s, owner=self.owner, lease_seconds=self.lease_seconds, limit=CLAIM_BATCH,
+                                          kinds=kinds, first=QUICK_KINDS)
             s.commit()
         for job in claimed:
             self._run_one(ctx, job)

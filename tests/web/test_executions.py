@@ -158,3 +158,22 @@ def test_a_job_whose_process_died_is_taken_over_once_its_lease_runs_out(slow_cli
         assert other_robot.worked == [f"participant-{_uid(slow_client, token)}/task-0/query-0"]
     finally:
         other.runtime.stop()
+
+
+def test_a_placement_settles_while_every_execution_waits_for_the_robot(slow_client) -> None:
+    # Two participants' executions wait for the robot (their plans made ahead, their work-outs): before quick jobs
+    # had runners of their own, a third participant's placement then waited behind them.
+    study_id = make_study(slow_client, n_practice=0, n_demonstrations=1, n_queries=1, n_tests=0)
+    for _ in range(2):
+        token, _ = to_teaching(slow_client, study_id)
+        demonstrate(slow_client, token, ["dinner_plate", "fork"])
+        assert slow_client.post("/api/v1/me/execution", headers=bearer(token)).status_code == 200
+    robot = slow_client.ctx.robot
+    _until(lambda: robot.worked, "the robot was never asked for an execution")
+    placing, _ = to_teaching(slow_client, study_id)
+    r = slow_client.post("/api/v1/me/placements", json={"object": "bowl"}, headers=bearer(placing))
+    assert r.status_code == 200 and r.json()["demonstration"]["placed"] == ["bowl"]
+    _until(lambda: slow_client.get("/api/v1/me", headers=bearer(placing)).json()["demonstration"]["settled"],
+           "the placement did not settle while the executions waited for the robot")
+    assert not robot.release_plans.is_set() and len(_pending(slow_client.ctx, WORK_OUT)) >= 1
+    robot.release_plans.set()
