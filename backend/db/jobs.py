@@ -32,18 +32,32 @@ class ClaimedJob:
 
 
 def add_job(session: Session, *, kind: str, participant_id: int, task_index: int | None,
-            payload: dict[str, Any], due_at: datetime | None = None) -> None:
-    """Record work to do once this transaction commits (at due_at, default now)."""
+            payload: dict[str, Any], due_at: datetime | None = None, held_for: str | None = None,
+            held_seconds: float = 0.0) -> None:
+    """Record work to do once this transaction commits (at due_at, default now). A job `held_for` a process is its
+    to claim for `held_seconds` past due (a lease it has not taken up yet: attempts stay 0); after that, any
+    process's."""
+    due = due_at or utcnow()
+    held_until = due + timedelta(seconds=held_seconds) if held_for is not None else None
     session.add(JobRow(kind=kind, participant_id=participant_id, task_index=task_index, payload=payload,
-                       due_at=due_at or utcnow(), attempts=0))
+                       due_at=due, attempts=0, claimed_by=held_for, claimed_until=held_until))
+
+
+def _free_for(owner: str | None, now: datetime) -> Any:
+    """The claim condition: nobody holds the job, its holder's lease ran out, or it is held for `owner` and not
+    taken up yet (a claim sets attempts to 1 or more, so a job under way is never claimed twice)."""
+    free = or_(JobRow.claimed_until.is_(None), JobRow.claimed_until < now)
+    if owner is None:
+        return free
+    return or_(free, and_(JobRow.claimed_by == owner, JobRow.attempts == 0))
 
 
 def claim_jobs(session: Session, *, owner: str, lease_seconds: float, limit: int, now: datetime | None = None,
                kinds: Collection[str] | None = None, first: Collection[str] = ()) -> list[ClaimedJob]:
-    """Take up to `limit` due jobs that nobody holds (or whose holder's lease ran out): of these kinds (None: any),
-    the kinds in `first` before the others, then oldest due first."""
+    """Take up to `limit` due jobs that nobody holds (or whose holder's lease ran out, or held for `owner`): of these
+    kinds (None: any), the kinds in `first` before the others, then oldest due first."""
     now = now or utcnow()
-    query = select(JobRow).where(JobRow.due_at <= now, or_(JobRow.claimed_until.is_(None), JobRow.claimed_until < now))
+    query = select(JobRow).where(JobRow.due_at <= now, _free_for(owner, now))
     if kinds is not None:
         query = query.where(JobRow.kind.in_(sorted(kinds)))
     if first:
@@ -77,14 +91,16 @@ def release_claims(session: Session) -> int:
     return int(result.rowcount or 0)  # type: ignore[attr-defined]
 
 
-_CLAIMABLE_AT = case((and_(JobRow.claimed_until.is_not(None), JobRow.claimed_until > JobRow.due_at),
-                      JobRow.claimed_until), else_=JobRow.due_at)
-
-
-def next_claimable(session: Session, kinds: Collection[str] | None = None) -> datetime | None:
-    """When the earliest job (of these kinds; None: any) can next be claimed (due, and its holder's lease, if any,
-    run out); None without such jobs. A read: a runner asks this before it takes the write lock to claim."""
-    query = select(func.min(_CLAIMABLE_AT))
+def next_claimable(session: Session, kinds: Collection[str] | None = None, owner: str | None = None
+                   ) -> datetime | None:
+    """When the earliest job (of these kinds; None: any) can next be claimed by `owner` (due, and its holder's
+    lease, if any, run out or held for `owner`); None without such jobs. A read: a runner asks this before it
+    takes the write lock to claim."""
+    held = and_(JobRow.claimed_until.is_not(None), JobRow.claimed_until > JobRow.due_at)
+    if owner is not None:  # what is held for the owner and not taken up yet is its to claim when due
+        held = and_(held, or_(JobRow.claimed_by.is_(None), JobRow.claimed_by != owner, JobRow.attempts != 0))
+    claimable_at = case((held, JobRow.claimed_until), else_=JobRow.due_at)
+    query = select(func.min(claimable_at))
     if kinds is not None:
         query = query.where(JobRow.kind.in_(sorted(kinds)))
     return session.execute(query).scalar_one_or_none()

@@ -62,6 +62,11 @@ SETTLE, WORK_OUT, FINISH_EXECUTION, PLAN_AHEAD = "settle", "work_out", "finish_e
 # these, so a placement never waits behind executions being worked out. (With W robot workers, the first W runners
 # take every kind: Runtime's slow_runners.)
 QUICK_KINDS = frozenset({SETTLE, FINISH_EXECUTION})
+# A job that needs the state of the process whose request stored it (a placement: the robot's table that the
+# participant's live view shows, on that process under sticky routing) is held for that process this long; then any
+# process takes it (the first one died). Another process would place the object where nobody watches, and the view
+# would show it only with the next placement.
+HELD_SECONDS = 2.0
 
 
 def backoff(attempts: int) -> float:
@@ -249,7 +254,7 @@ class Runtime:
             return self.poll_seconds
         try:
             with ctx.db.read() as s:
-                at = job_rows.next_claimable(s, kinds)
+                at = job_rows.next_claimable(s, kinds, self.owner)
         except Exception:  # noqa: BLE001 - polling again later finds it
             return self.poll_seconds
         if at is None:
