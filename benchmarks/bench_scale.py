@@ -489,8 +489,6 @@ class Participant:
                 reader.cancel()
                 await asyncio.gather(reader, return_exceptions=True)
             self.results.live(clicks, motions)
-            if os.environ.get('BENCH_DEBUG'):
-                print('DEBUG', self.token[:6], step['kind'], step['index'], [round(c - clicks[0], 2) for c in clicks], [round(a - clicks[0], 2) for a, _ in motions], flush=True)
             return
         await self.pause()
         started = time.perf_counter()
