@@ -165,6 +165,9 @@ def app_processes(k: int, url: str, folder: Path, logs: Path, token: str, robot:
     env = {**os.environ, "TABLETEACH_EXPERIMENTER_TOKEN": token, "TABLETEACH_ROBOT": robot,
            "TABLETEACH_ROBOT_SPEED": str(speed), "TABLETEACH_DATA_DIR": str(folder / "data"),
            "TABLETEACH_ROBOT_WORKERS": str(workers),
+           # Every simulated participant joins from this machine's address: the per-address join limit (a guard
+           # against one client joining over and over) would refuse all past the first 30 a minute.
+           "TABLETEACH_JOINS_PER_ADDRESS": "100000",
            # The trace robot takes as long per object as the MuJoCo arm, so people wait as long for it.
            "TABLETEACH_ROBOT_SECONDS_PER_OBJECT": str(MUJOCO_SECONDS_PER_OBJECT / speed)}
     env.pop("TABLETEACH_DEV_MODE", None)
