@@ -7,6 +7,8 @@ from __future__ import annotations
 from datetime import datetime, timedelta
 from typing import Any
 
+import pytest
+
 from tableteach.db import jobs as job_rows
 from tableteach.db.tables import utcnow
 from tableteach.services.runtime import FINISH_EXECUTION, HELD_SECONDS, QUICK_KINDS, SETTLE, WORK_OUT
@@ -14,12 +16,20 @@ from tableteach.services.runtime import FINISH_EXECUTION, HELD_SECONDS, QUICK_KI
 from .helpers import join, make_study
 
 
-def _participant(client: Any) -> int:
+@pytest.fixture
+def quiet(app_client: Any) -> tuple[Any, int, datetime]:
+    """The app with its runtime stopped (these tests claim by hand), a participant's id and the time now."""
     from tableteach.services.state import participant_and_study
 
-    token, _ = join(client, make_study(client))
-    with client.ctx.db.read() as s:
-        return participant_and_study(s, token)[0].id
+    app_client.ctx.runtime.stop()
+    token, _ = join(app_client, make_study(app_client))
+    with app_client.ctx.db.read() as s:
+        return app_client, participant_and_study(s, token)[0].id, utcnow()
+
+
+def _claim(s: Any, owner: str, at: datetime, **options: Any) -> list[job_rows.ClaimedJob]:
+    """What `owner` claims at `at` (a 30 s lease, up to 4 jobs)."""
+    return job_rows.claim_jobs(s, owner=owner, lease_seconds=30, limit=4, now=at, **options)
 
 
 def _seconds_after(start: datetime, at: datetime | None) -> float:
@@ -28,10 +38,8 @@ def _seconds_after(start: datetime, at: datetime | None) -> float:
     return (at.replace(tzinfo=None) - start.replace(tzinfo=None)).total_seconds()
 
 
-def test_a_held_job_is_its_process_s_at_once_and_anyones_after_the_hold(app_client: Any) -> None:
-    client = app_client
-    client.ctx.runtime.stop()  # this test claims by hand
-    pid, now = _participant(client), utcnow()
+def test_a_held_job_is_its_process_s_at_once_and_anyones_after_the_hold(quiet: tuple[Any, int, datetime]) -> None:
+    client, pid, now = quiet
     with client.ctx.db.write() as s:
         job_rows.add_job(s, kind=SETTLE, participant_id=pid, task_index=0, payload={}, due_at=now,
                          held_for="A", held_seconds=HELD_SECONDS)
@@ -40,45 +48,34 @@ def test_a_held_job_is_its_process_s_at_once_and_anyones_after_the_hold(app_clie
         assert _seconds_after(now, job_rows.next_claimable(s, owner="A")) == 0.0
         assert abs(_seconds_after(now, job_rows.next_claimable(s, owner="B")) - HELD_SECONDS) < 1e-3
     with client.ctx.db.write() as s:
-        assert job_rows.claim_jobs(s, owner="B", lease_seconds=30, limit=4, now=now) == []
-        (claimed,) = job_rows.claim_jobs(s, owner="A", lease_seconds=30, limit=4, now=now)
+        assert _claim(s, "B", now) == []
+        (claimed,) = _claim(s, "A", now)
         assert claimed.kind == SETTLE and claimed.attempts == 1
         # under way at A: neither A's other runners nor B take it until its lease runs out
-        assert job_rows.claim_jobs(s, owner="A", lease_seconds=30, limit=4, now=now) == []
-        assert job_rows.claim_jobs(s, owner="B", lease_seconds=30, limit=4, now=now + timedelta(seconds=5)) == []
-        (again,) = job_rows.claim_jobs(s, owner="B", lease_seconds=30, limit=4, now=now + timedelta(seconds=31))
+        assert _claim(s, "A", now) == [] and _claim(s, "B", now + timedelta(seconds=5)) == []
+        (again,) = _claim(s, "B", now + timedelta(seconds=31))
         assert again.id == claimed.id and again.attempts == 2
         s.rollback()
 
 
-def test_a_held_job_whose_process_is_gone_is_taken_after_the_hold(app_client: Any) -> None:
-    client = app_client
-    client.ctx.runtime.stop()
-    pid, now = _participant(client), utcnow()
+def test_a_held_job_whose_process_is_gone_is_taken_after_the_hold(quiet: tuple[Any, int, datetime]) -> None:
+    client, pid, now = quiet
     with client.ctx.db.write() as s:
         job_rows.add_job(s, kind=SETTLE, participant_id=pid, task_index=0, payload={}, due_at=now,
                          held_for="gone", held_seconds=HELD_SECONDS)
-        assert job_rows.claim_jobs(s, owner="B", lease_seconds=30, limit=4,
-                                   now=now + timedelta(seconds=HELD_SECONDS / 2)) == []
-        (taken,) = job_rows.claim_jobs(s, owner="B", lease_seconds=30, limit=4,
-                                       now=now + timedelta(seconds=HELD_SECONDS + 0.1))
+        assert _claim(s, "B", now + timedelta(seconds=HELD_SECONDS / 2)) == []
+        (taken,) = _claim(s, "B", now + timedelta(seconds=HELD_SECONDS + 0.1))
         assert taken.kind == SETTLE
         s.rollback()
 
 
-def test_quick_kinds_come_first_and_a_quick_runner_takes_nothing_else(app_client: Any) -> None:
-    client = app_client
-    client.ctx.runtime.stop()
-    pid, now = _participant(client), utcnow()
-    with client.ctx.db.write() as s:
-        job_rows.add_job(s, kind=WORK_OUT, participant_id=pid, task_index=0, payload={}, due_at=now - timedelta(1))
-        job_rows.add_job(s, kind=FINISH_EXECUTION, participant_id=pid, task_index=0, payload={}, due_at=now)
-        quick = job_rows.claim_jobs(s, owner="A", lease_seconds=30, limit=4, now=now, kinds=QUICK_KINDS)
-        assert [j.kind for j in quick] == [FINISH_EXECUTION]
-        s.rollback()
-    with client.ctx.db.write() as s:
-        job_rows.add_job(s, kind=WORK_OUT, participant_id=pid, task_index=0, payload={}, due_at=now - timedelta(1))
-        job_rows.add_job(s, kind=FINISH_EXECUTION, participant_id=pid, task_index=0, payload={}, due_at=now)
-        both = job_rows.claim_jobs(s, owner="A", lease_seconds=30, limit=4, now=now, first=QUICK_KINDS)
-        assert [j.kind for j in both] == [FINISH_EXECUTION, WORK_OUT]  # the older work-out after the quick job
-        s.rollback()
+def test_quick_kinds_come_first_and_a_quick_runner_takes_nothing_else(quiet: tuple[Any, int, datetime]) -> None:
+    client, pid, now = quiet
+    for options, expected in (({"kinds": QUICK_KINDS}, [FINISH_EXECUTION]),
+                              ({"first": QUICK_KINDS}, [FINISH_EXECUTION, WORK_OUT])):  # the older work-out after
+        with client.ctx.db.write() as s:
+            job_rows.add_job(s, kind=WORK_OUT, participant_id=pid, task_index=0, payload={},
+                             due_at=now - timedelta(1))
+            job_rows.add_job(s, kind=FINISH_EXECUTION, participant_id=pid, task_index=0, payload={}, due_at=now)
+            assert [j.kind for j in _claim(s, "A", now, **options)] == expected
+            s.rollback()
