@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from datetime import datetime, timedelta
 from typing import Any
 
-from sqlalchemy import and_, case, delete, func, or_, select, update
+from sqlalchemy import and_, case, delete, func, not_, or_, select, update
 from sqlalchemy.orm import Session
 
 from .tables import JobRow, utcnow
@@ -43,13 +43,15 @@ def add_job(session: Session, *, kind: str, participant_id: int, task_index: int
                        due_at=due, attempts=0, claimed_by=held_for, claimed_until=held_until))
 
 
-def _free_for(owner: str | None, now: datetime) -> Any:
-    """The claim condition: nobody holds the job, its holder's lease ran out, or it is held for `owner` and not
-    taken up yet (a claim sets attempts to 1 or more, so a job under way is never claimed twice)."""
-    free = or_(JobRow.claimed_until.is_(None), JobRow.claimed_until < now)
-    if owner is None:
-        return free
-    return or_(free, and_(JobRow.claimed_by == owner, JobRow.attempts == 0))
+def _held_for(owner: str) -> Any:
+    """A job held for `owner` that it has not taken up yet (a claim sets attempts to 1 or more, so a job under way is
+    never claimed twice); never NULL."""
+    return and_(func.coalesce(JobRow.claimed_by, "") == owner, JobRow.attempts == 0)
+
+
+def _of_kinds(query: Any, kinds: Collection[str] | None) -> Any:
+    """The query restricted to jobs of these kinds (None: any)."""
+    return query if kinds is None else query.where(JobRow.kind.in_(sorted(kinds)))
 
 
 def claim_jobs(session: Session, *, owner: str, lease_seconds: float, limit: int, now: datetime | None = None,
@@ -57,9 +59,8 @@ def claim_jobs(session: Session, *, owner: str, lease_seconds: float, limit: int
     """Take up to `limit` due jobs that nobody holds (or whose holder's lease ran out, or held for `owner`): of these
     kinds (None: any), the kinds in `first` before the others, then oldest due first."""
     now = now or utcnow()
-    query = select(JobRow).where(JobRow.due_at <= now, _free_for(owner, now))
-    if kinds is not None:
-        query = query.where(JobRow.kind.in_(sorted(kinds)))
+    free = or_(JobRow.claimed_until.is_(None), JobRow.claimed_until < now, _held_for(owner))
+    query = _of_kinds(select(JobRow).where(JobRow.due_at <= now, free), kinds)
     if first:
         query = query.order_by(case((JobRow.kind.in_(sorted(first)), 0), else_=1))
     query = query.order_by(JobRow.due_at, JobRow.id).limit(limit)
@@ -91,19 +92,13 @@ def release_claims(session: Session) -> int:
     return int(result.rowcount or 0)  # type: ignore[attr-defined]
 
 
-def next_claimable(session: Session, kinds: Collection[str] | None = None, owner: str | None = None
-                   ) -> datetime | None:
-    """When the earliest job (of these kinds; None: any) can next be claimed by `owner` (due, and its holder's
-    lease, if any, run out or held for `owner`); None without such jobs. A read: a runner asks this before it
-    takes the write lock to claim."""
-    held = and_(JobRow.claimed_until.is_not(None), JobRow.claimed_until > JobRow.due_at)
-    if owner is not None:  # what is held for the owner and not taken up yet is its to claim when due
-        held = and_(held, or_(JobRow.claimed_by.is_(None), JobRow.claimed_by != owner, JobRow.attempts != 0))
-    claimable_at = case((held, JobRow.claimed_until), else_=JobRow.due_at)
-    query = select(func.min(claimable_at))
-    if kinds is not None:
-        query = query.where(JobRow.kind.in_(sorted(kinds)))
-    return session.execute(query).scalar_one_or_none()
+def next_claimable(session: Session, *, owner: str, kinds: Collection[str] | None = None) -> datetime | None:
+    """When the earliest job (of these kinds; None: any) can next be claimed by `owner`: when due, or once its
+    holder's lease runs out unless it is held for `owner`; None without such jobs. A read: a runner asks this
+    before it takes the write lock to claim."""
+    leased = and_(JobRow.claimed_until.is_not(None), JobRow.claimed_until > JobRow.due_at, not_(_held_for(owner)))
+    claimable_at = case((leased, JobRow.claimed_until), else_=JobRow.due_at)
+    return session.execute(_of_kinds(select(func.min(claimable_at)), kinds)).scalar_one_or_none()
 
 
 def pending_jobs(session: Session, *, participant_id: int | None = None) -> list[JobRow]:

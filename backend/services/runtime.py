@@ -127,7 +127,7 @@ class Runtime:
     def __init__(self, handlers: dict[str, Handler], *, job_threads: int = JOB_THREADS, slow_runners: int = 1,
                  poll_seconds: float = POLL_SECONDS, lease_seconds: float = LEASE_SECONDS,
                  sweep_seconds: float = 15.0) -> None:
-        if not 1 <= slow_runners:
+        if slow_runners < 1:
             raise ValueError(f"slow_runners {slow_runners} is below 1: expected at least one runner of every kind")
         self.handlers = handlers
         self.slow_runners = slow_runners  # runners that take every kind; the others take only QUICK_KINDS
@@ -254,7 +254,7 @@ class Runtime:
             return self.poll_seconds
         try:
             with ctx.db.read() as s:
-                at = job_rows.next_claimable(s, kinds, self.owner)
+                at = job_rows.next_claimable(s, owner=self.owner, kinds=kinds)
         except Exception:  # noqa: BLE001 - polling again later finds it
             return self.poll_seconds
         if at is None:
