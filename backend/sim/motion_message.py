@@ -33,9 +33,9 @@ class TableTeachMotionMessage(viser_messages.Message, include_in_scene_serializa
         return MESSAGE_TYPE
 
     def as_serializable_dict(self, binary_buffers: list[memoryview] | None = None) -> dict[str, Any]:
-        """What the viewer page reads: node names, frame count, times and poses as little-endian float32 bytes."""
-        return {"type": MESSAGE_TYPE, "nodes": list(self.nodes), "frames": len(self.times) // 4,
-                "times": self.times, "poses": self.poses, "owner": self.owner}
+        """What the viewer page reads: node names, times and poses as little-endian float32 bytes."""
+        return {"type": MESSAGE_TYPE, "nodes": list(self.nodes), "times": self.times, "poses": self.poses,
+                "owner": self.owner}
 
 
 def motion_message(nodes: tuple[str, ...], times: np.ndarray, poses: np.ndarray) -> TableTeachMotionMessage:
