@@ -12,6 +12,7 @@
 
   const floats = (bytes) => new Float32Array(bytes.slice().buffer); // msgpack's bin may sit unaligned
 
+  /** A motion message as the player keeps it: its nodes, owner, float32 times and poses, and where it is. */
   function start(message) {
     const times = floats(message.times);
     return { names: message.nodes, nodes: new Set(message.nodes), owner: message.owner, times,
@@ -49,38 +50,40 @@
     return frame;
   }
 
+  /** Jump the playing motion to its last frame and stop it (its pose messages go to `out`). */
+  function cut(out) {
+    out.push(...frameMessages(playing, playing.count - 1));
+    playing = null;
+    stats.cut += 1;
+  }
+
+  /** Start playing a motion: its first frame goes to `out`, the others to `deliver` as their times come. */
+  function play(message, out, deliver) {
+    const motion = start(message);
+    stats.motions += 1;
+    out.push(...frameMessages(motion, 0));
+    if (motion.count < 2) return;
+    playing = motion;
+    const tick = () => {
+      if (playing !== motion) return;
+      const frame = dueFrame(motion);
+      if (frame !== motion.frame) deliver(frameMessages(motion, frame));
+      if (frame + 1 >= motion.count) playing = null;
+      else requestAnimationFrame(tick);
+    };
+    requestAnimationFrame(tick);
+  }
+
   /** A worker's messages to viser with the motions taken out and played; `deliver` hands viser a batch. */
   function route(data, deliver) {
     if (data?.type === "connected") playing = null; // viser resets its scene: the server sends it whole again
     if (data?.type !== "message_batch" || !Array.isArray(data.messages)) return;
     const out = [];
     for (const message of data.messages) {
-      if (message?.type === MOTION) {
-        if (playing) { out.push(...frameMessages(playing, playing.count - 1)); stats.cut += 1; }
-        playing = start(message);
-        stats.motions += 1;
-        out.push(...frameMessages(playing, 0));
-        if (playing.count > 1) {
-          const motion = playing;
-          const tick = () => {
-            if (playing !== motion) return;
-            const frame = dueFrame(motion);
-            if (frame !== motion.frame) deliver(frameMessages(motion, frame));
-            if (frame + 1 >= motion.count) playing = null;
-            else requestAnimationFrame(tick);
-          };
-          requestAnimationFrame(tick);
-        } else {
-          playing = null;
-        }
-        continue;
-      }
-      if (playing && POSES.has(message?.type) && playing.nodes.has(message.name)) {
-        out.push(...frameMessages(playing, playing.count - 1));
-        playing = null;
-        stats.cut += 1;
-      }
-      out.push(message);
+      const motion = message?.type === MOTION;
+      if (playing && (motion || (POSES.has(message?.type) && playing.nodes.has(message.name)))) cut(out);
+      if (motion) play(message, out, deliver);
+      else out.push(message);
     }
     data.messages = out;
   }
