@@ -75,8 +75,7 @@ def place(a: Action, ts: TaskSessionRow, obj: str, step_kind: str, step_index: i
           task_index=ts.task_index, step_kind=step_kind, step_index=step_index)
     robot, key = a.ctx.robot, robot_key(a.participant, ts.task_index)
     if robot.works_in_background:
-        # here: the robot's table in this process is the one the participant's live view shows
-        a.enqueue(SETTLE, ts.task_index, {"step_kind": step_kind, "step_index": step_index}, here=True)
+        a.enqueue(SETTLE, ts.task_index, {"step_kind": step_kind, "step_index": step_index})
         return
     if not ts.demo_trace:
         robot.reset(key)

@@ -58,14 +58,14 @@ Handler = Callable[["Context", job_rows.ClaimedJob], None]
 # The kinds of background job (services.background has their handlers).
 SETTLE, WORK_OUT, FINISH_EXECUTION, PLAN_AHEAD = "settle", "work_out", "finish_execution", "plan_ahead"
 # Jobs a participant is waiting on that take milliseconds (a placement's labels, an execution's end). The others
-# may wait seconds for a robot worker: the first runner takes every kind (these first), the other runners only
-# these, so a placement never waits behind executions being worked out. (With W robot workers, the first W runners
-# take every kind: Runtime's slow_runners.)
+# may wait seconds for a robot worker: the first `slow_runners` runners (one per robot worker) take every kind,
+# these first, and the other runners only these, so a placement never waits behind executions being worked out.
 QUICK_KINDS = frozenset({SETTLE, FINISH_EXECUTION})
-# A job that needs the state of the process whose request stored it (a placement: the robot's table that the
-# participant's live view shows, on that process under sticky routing) is held for that process this long; then any
-# process takes it (the first one died). Another process would place the object where nobody watches, and the view
-# would show it only with the next placement.
+# Jobs that need the state of the process whose request stored them (a placement: the robot's table that the
+# participant's live view shows, on that process under sticky routing) are held for that process HELD_SECONDS;
+# then any process takes them (the first one died). Another process would place the object where nobody watches,
+# and the view would show it only with the next placement.
+HELD_KINDS = frozenset({SETTLE})
 HELD_SECONDS = 2.0
 
 

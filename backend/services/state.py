@@ -22,7 +22,7 @@ from ..recording_store import RecordingId
 from . import executions, outcomes
 from .context import Context, app_version, aware, iso
 from .etags import state_tag_of
-from .runtime import HELD_SECONDS, PLAN_AHEAD
+from .runtime import HELD_KINDS, HELD_SECONDS, PLAN_AHEAD
 from .guidance import lay_summary, progress, required_objects
 from .page_state import extend_state
 from .planning import ROBOT_TURNS, position_of, session_of
@@ -325,13 +325,12 @@ class Action:
             client_event_id=self.key if first else None, request_digest=self.digest if first else None,
         )
 
-    def enqueue(self, kind: str, task_index: int, payload: dict[str, Any], *, due_in: float = 0.0,
-                here: bool = False) -> None:
-        """Record a background job in this action's transaction (services.background says what each kind does);
-        `here`: held for this process for a moment (runtime.HELD_SECONDS), as it needs this process's state."""
+    def enqueue(self, kind: str, task_index: int, payload: dict[str, Any], *, due_in: float = 0.0) -> None:
+        """Record a background job in this action's transaction (services.background says what each kind does); one
+        of runtime.HELD_KINDS is held for this process for a moment, as it needs this process's state."""
         job_rows.add_job(self.s, kind=kind, participant_id=self.participant.id, task_index=task_index,
                          payload=payload, due_at=utcnow() + timedelta(seconds=max(0.0, due_in)),
-                         held_for=self.ctx.runtime.owner if here else None, held_seconds=HELD_SECONDS)
+                         held_for=self.ctx.runtime.owner if kind in HELD_KINDS else None, held_seconds=HELD_SECONDS)
         self.wake_runtime = True
 
     def after(self, effect: Callable[[], None]) -> None:

@@ -79,3 +79,18 @@ def test_quick_kinds_come_first_and_a_quick_runner_takes_nothing_else(quiet: tup
             job_rows.add_job(s, kind=FINISH_EXECUTION, participant_id=pid, task_index=0, payload={}, due_at=now)
             assert [j.kind for j in _claim(s, "A", now, **options)] == expected
             s.rollback()
+
+
+def test_a_placement_stores_its_settle_job_held_for_the_process_that_took_it(tmp_path: Any) -> None:
+    from .conftest import in_process_app
+    from .helpers import bearer, to_teaching
+    from .test_executions import SlowRobot  # places in the background, as the MuJoCo robot does
+
+    with in_process_app(tmp_path, SlowRobot()) as client:
+        client.ctx.runtime.stop()  # the job stays stored, unclaimed
+        token, _ = to_teaching(client, make_study(client, n_practice=0))
+        assert client.post("/api/v1/me/placements", json={"object": "bowl"}, headers=bearer(token)).status_code == 200
+        with client.ctx.db.read() as s:
+            (job,) = job_rows.pending_jobs(s)
+            assert (job.kind, job.claimed_by, job.attempts) == (SETTLE, client.ctx.runtime.owner, 0)
+            assert _seconds_after(job.due_at, job.claimed_until) == HELD_SECONDS
