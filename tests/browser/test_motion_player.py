@@ -9,6 +9,7 @@ import time
 import numpy as np
 import pytest
 
+from tableteach import services
 from tests.web.conftest import open_study, study_spec
 
 from joining import join_and_begin
@@ -29,7 +30,7 @@ def test_the_page_plays_a_placement_sent_once_and_ends_where_the_server_is(brows
     study_id = open_study(server.url, study_spec(["active"], n_practice=0, n_demonstrations=1, n_queries=0,
                                                  n_tests=0))
     token = join_and_begin(page, server.url, study_id, "motion-1")
-    key = f"{__import__('tableteach').services.participant_state(server.ctx, token)['participant_id']}/0"
+    key = f"{services.participant_state(server.ctx, token)['participant_id']}/0"
     deadline = time.monotonic() + WAIT_MS / 1000
     while not server.ctx.robot.view_clients(key):
         assert time.monotonic() < deadline, "the page did not open its 3D view"
